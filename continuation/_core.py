@@ -1,0 +1,899 @@
+"""Pseudo-arclength continuation driver, special-point location and branch switching.
+
+References
+----------
+- H. B. Keller, "Numerical solution of bifurcation and nonlinear eigenvalue
+  problems" (1977): pseudo-arclength continuation with bordered systems.
+- W. Govaerts, *Numerical Methods for Bifurcations of Dynamical Equilibria*
+  (SIAM, 2000): minimally augmented systems for folds, bordered test functions.
+- E. Doedel, AUTO-07p manual: branch switching through the algebraic
+  bifurcation equation; step control.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+
+import numpy as np
+import scipy.optimize as sopt
+
+from . import _branch as B
+from ._branch import Branch, SpecialPoint, package_version
+from ._linalg import bordered, factorize, inertia_negative
+from ._problem import Evaluator, check_jacobian
+from ._settings import ContinuationSettings
+
+# Branch-point test function borders: fixed pseudo-random vectors, so results
+# are reproducible; any vectors not orthogonal to the kernels work.
+_BORDER_SEED = 20240611
+
+# Relative finite-difference step for second derivatives (directional
+# derivatives of the Jacobian): eps**(1/3) balances truncation and rounding.
+_FD2 = np.finfo(float).eps ** (1.0 / 3.0)
+
+
+class _Corrected:
+    __slots__ = ("x", "iters", "fac", "ok", "reason", "normF")
+
+    def __init__(self, x, iters, fac, ok, reason, normF):
+        self.x, self.iters, self.fac, self.ok, self.reason, self.normF = (
+            x, iters, fac, ok, reason, normF)
+
+
+class _Core:
+    """Configuration + numerical kernels shared by the driver and the locators."""
+
+    def __init__(self, ev: Evaluator, settings: ContinuationSettings, n: int):
+        self.ev, self.s, self.n = ev, settings, n
+        self.wu = settings.theta / n
+        self.wp = 1.0 - settings.theta
+        rng = np.random.default_rng(_BORDER_SEED)
+        self.bb = rng.standard_normal(n + 1)
+        self.bc = rng.standard_normal(n + 1)
+
+    # -------------------------------------------------------------- weighted norm
+    def dot(self, a, b) -> float:
+        n = self.n
+        return self.wu * float(a[:n] @ b[:n]) + self.wp * float(a[n] * b[n])
+
+    def normalize(self, t):
+        return t / math.sqrt(self.dot(t, t))
+
+    def wrow(self, t):
+        r = np.empty_like(t)
+        r[: self.n] = self.wu * t[: self.n]
+        r[self.n] = self.wp * t[self.n]
+        return r
+
+    # -------------------------------------------------------------- bordered matrix
+    def bmatrix(self, x, row):
+        n = self.n
+        u, p = x[:n], x[n]
+        return bordered(self.ev.J(u, p), self.ev.Fp(u, p), row[:n], row[n])
+
+    # -------------------------------------------------------------- Newton corrector
+    def correct(self, x0, row, c, moore_penrose=False, tol=None, max_iter=None) -> _Corrected:
+        """Newton on ``F(x) = 0, row . x = c`` (one bordered LU per iteration).
+
+        With ``moore_penrose`` the row is replaced at each iteration by the
+        current tangent and the constraint by orthogonality of the update.
+        """
+        s = self.s
+        tol = s.newton_tol if tol is None else tol
+        max_iter = s.max_newton if max_iter is None else max_iter
+        n = self.n
+        x = x0.copy()
+        fac = None
+        prev = math.inf
+        rhs = np.empty(n + 1)
+        for it in range(max_iter + 1):
+            u, p = x[:n], x[n]
+            F = self.ev.F(u, p)
+            normF = float(np.max(np.abs(F))) if F.size else 0.0
+            if not math.isfinite(normF):
+                return _Corrected(x, it, None, False, "non-finite residual", normF)
+            arc = 0.0 if moore_penrose else float(row @ x - c)
+            if normF <= tol and abs(arc) <= tol * (1.0 + abs(c)):
+                return _Corrected(x, it, fac, True, "", normF)
+            if it == max_iter:
+                return _Corrected(x, it, fac, False,
+                                  f"Newton did not converge in {max_iter} iterations "
+                                  f"(max|F|={normF:.2e} > newton_tol={tol:.1e})", normF)
+            # Quadratic convergence from a tangent predictor never lets the
+            # residual grow after the first iteration: growth means divergence.
+            if it >= 2 and normF > prev:
+                return _Corrected(x, it, fac, False,
+                                  f"Newton diverging (max|F| grew {prev:.2e} -> {normF:.2e})",
+                                  normF)
+            prev = normF
+            A = bordered(self.ev.J(u, p), self.ev.Fp(u, p), row[:n], row[n])
+            fac = factorize(A)
+            if fac is None:
+                return _Corrected(x, it, None, False, "singular bordered Jacobian", normF)
+            rhs[:n] = -F
+            rhs[n] = -arc
+            dx = fac.solve(rhs)
+            if moore_penrose:
+                e = np.zeros(n + 1)
+                e[n] = 1.0
+                tnew = self.normalize(fac.solve(e))
+                row = self.wrow(tnew)
+            x = x + dx
+        raise AssertionError("unreachable")
+
+    def tangent_from(self, fac, t_ref=None):
+        """Unit tangent from a bordered factorization whose last row is ``W t_ref``."""
+        e = np.zeros(self.n + 1)
+        e[self.n] = 1.0
+        t = self.normalize(fac.solve(e))
+        return t
+
+    # -------------------------------------------------------------- observations
+    def observe(self, u, p):
+        ev, s = self.ev, self.s
+        obs = ev.observables(u, p) if ev.observables is not None else {}
+        stab = -1
+        if s.compute_stability and ev.hessian is not None:
+            C = ev.constraint_jacobian(u, p) if ev.constraint_jacobian is not None else None
+            stab = inertia_negative(ev.hessian(u, p), C)
+        return obs, stab
+
+    def bp_test(self, x, row):
+        """Bordered test function for branch points and the kernel vectors.
+
+        ``psi = 1 / (c . A^{-1} b)`` with ``A = [[J, F_p], [row]]``: smooth, and
+        zero exactly where ``A`` is singular (Govaerts 2000, sec. 3.4).
+        """
+        A = self.bmatrix(x, row)
+        fac = factorize(A)
+        if fac is None:
+            return 0.0, None, None
+        y = fac.solve(self.bb)
+        d = float(self.bc @ y)
+        return (1.0 / d if d != 0 else math.inf), y, fac
+
+
+# ================================================================== fold location
+def _fold_system(ev, u, p, b, c):
+    """Solve ``[[J, b], [c^T, 0]] [v; g] = [0; 1]`` and its transpose.
+
+    Returns ``g, v, w, J`` with ``g`` the minimally augmented fold test function
+    (``g = 0`` iff ``J`` is singular, Govaerts 2000, sec. 4.2).
+    """
+    n = u.size
+    J = ev.J(u, p)
+    M = bordered(J, b, c, 0.0)
+    fac = factorize(M)
+    if fac is None:
+        return None
+    e = np.zeros(n + 1)
+    e[n] = 1.0
+    sv = fac.solve(e)
+    sw = fac.solve(e, trans=True)
+    return sv[n], sv[:n], sw[:n], J
+
+
+def _fold_gradient(ev, u, p, v, w, q_family=None):
+    """``g_u = -w^T J_u v`` and ``g_p = -w^T J_p v`` by central differences.
+
+    ``d/du (w^T J(u) v) = d/dh J(u + h v)^T w`` at h = 0, so two Jacobian
+    evaluations give the whole gradient.
+    """
+    h = _FD2 * (1.0 + float(np.max(np.abs(u)))) / max(float(np.max(np.abs(v))), 1e-300)
+    Jp = ev.J(u + h * v, p)
+    Jm = ev.J(u - h * v, p)
+    gu = -np.asarray(Jp.T @ w - Jm.T @ w).ravel() / (2.0 * h)
+    gp = -float(w @ (ev.Fp(u + h * v, p) - ev.Fp(u - h * v, p))) / (2.0 * h)
+    return gu, gp
+
+
+def _locate_fold(ev, u, p, v0, tol, max_iter=25):
+    """Newton on the minimally augmented system ``F = 0, g = 0``.
+
+    Returns ``(u, p, v, converged, precision, iterations, message)``.
+    """
+    n = u.size
+    u = u.copy()
+    c = v0[:n] / np.linalg.norm(v0[:n])
+    b = c.copy()
+    # One transpose solve turns the right null guess into a left one, so the
+    # bordered matrix stays well conditioned for non-symmetric J.
+    r = _fold_system(ev, u, p, b, c)
+    if r is None:
+        return u, p, c, False, math.inf, 0, "singular bordered matrix at the fold guess"
+    _, v, w, _ = r
+    if np.linalg.norm(w) > 0:
+        b = w / np.linalg.norm(w)
+    prec = math.inf
+    for it in range(1, max_iter + 1):
+        r = _fold_system(ev, u, p, b, c)
+        if r is None:
+            return u, p, c, False, prec, it, "singular bordered matrix during fold Newton"
+        g, v, w, J = r
+        F = ev.F(u, p)
+        Fp = ev.Fp(u, p)
+        gu, gp = _fold_gradient(ev, u, p, v, w)
+        A = bordered(J, Fp, gu, gp)
+        fac = factorize(A)
+        if fac is None:
+            return u, p, v, False, prec, it, "singular fold Jacobian (a cusp or a degenerate fold?)"
+        dx = fac.solve(-np.concatenate([F, [g]]))
+        if not np.all(np.isfinite(dx)):
+            return u, p, v, False, prec, it, "non-finite Newton update in fold location"
+        u = u + dx[:n]
+        p = p + dx[n]
+        prec = abs(dx[n])
+        if np.max(np.abs(dx)) <= tol * (1.0 + max(np.max(np.abs(u)), abs(p))):
+            return u, p, v / np.linalg.norm(v), True, prec, it, ""
+    return u, p, c, False, prec, max_iter, (
+        f"fold Newton did not converge in {max_iter} iterations (last |dp|={prec:.1e})")
+
+
+def locate_fold(problem, u, p, v=None, tol: float = 1e-12, max_iter: int = 25) -> SpecialPoint:
+    """Locate a fold (limit point) of ``F(u, p) = 0`` near ``(u, p)``.
+
+    Newton's method on the minimally augmented system ``F(u, p) = 0,
+    g(u, p) = 0`` where ``g`` solves ``[[J, b], [c^T, 0]] [v; g] = [0; 1]``
+    (Govaerts 2000, sec. 4.2; BifurcationKit's ``newton_fold``). Converges
+    quadratically; the result solves the discrete problem to rounding error.
+
+    Parameters
+    ----------
+    problem : Problem
+    u : ndarray, shape (n,)
+        Guess of the state at the fold (e.g. the branch point nearest the fold).
+    p : float
+        Guess of the parameter.
+    v : ndarray, shape (n,) or (n + 1,), optional
+        Guess of the null vector of dF/du (e.g. a branch tangent near the
+        fold); default: the tangent of the branch through ``(u, p)``.
+    tol : float
+        Stop when the Newton update is below ``tol * (1 + max|x|)``.
+    max_iter : int
+
+    Returns
+    -------
+    SpecialPoint
+        ``kind="fold"``; ``located`` says whether Newton converged; ``data``
+        holds ``kernel`` (the null vector), ``iterations`` and ``message``.
+    """
+    ev = Evaluator(problem)
+    ev.warn_if_fd()
+    u = np.asarray(u, dtype=float)
+    p = float(p)
+    if v is None:
+        v = _start_tangent(ev, u, p)[0]
+        if v is None:
+            v = np.ones(u.size)
+    v = np.asarray(v, dtype=float)
+    uf, pf, kern, ok, prec, its, msg = _locate_fold(ev, u, p, v, tol, max_iter)
+    return SpecialPoint("fold", -1, float(pf), uf, prec, ok, "",
+                        {"kernel": kern, "iterations": its, "message": msg})
+
+
+def _start_tangent(ev, u, p):
+    """Tangent at a solution, robust to a singular dF/du (start at a fold).
+
+    Returns ``(t, message)``; ``t`` is None for a singular start (the null
+    space of ``[dF/du, dF/dp]`` has dimension >= 2).
+    """
+    n = u.size
+    J = ev.J(u, p)
+    Fp = ev.Fp(u, p)
+    e = np.zeros(n + 1)
+    e[n] = 1.0
+    fac = factorize(bordered(J, Fp, np.zeros(n), 1.0))
+    if fac is not None:
+        t = fac.solve(e)
+        if np.all(np.isfinite(t)) and np.max(np.abs(t)) < 1e12:
+            return t, ""
+    # dF/du singular: the null vector of the n x (n+1) matrix [J, F_p] by SVD.
+    Jd = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
+    Ext = np.hstack([Jd, Fp.reshape(n, 1)])
+    _, sv, Vt = np.linalg.svd(Ext)
+    smax = sv[0] if sv.size else 0.0
+    # A rank deficiency of [J, F_p] (second-smallest singular value of the
+    # square completion below 1e-8 of the largest) means a branch point or a
+    # degenerate start: the tangent is not unique.
+    if smax == 0.0 or sv[-1] <= 1e-8 * smax:
+        return None, (
+            f"the start is singular: [dF/du, dF/dp] has rank < n (smallest singular value "
+            f"{(sv[-1] if sv.size else 0.0):.2e}, largest {smax:.2e}), so the tangent is not "
+            "unique (a branch point or a degenerate solution). Try starting at a slightly "
+            "different p0, or use switch_branch from a computed branch.")
+    return Vt[-1], ""
+
+
+# ================================================================== the driver
+class _Run:
+    """Mutable state of one continuation run in one direction."""
+
+    def __init__(self, core: _Core, events, stop_on, callback):
+        self.core = core
+        self.events = events
+        self.stop_on = stop_on
+        self.callback = callback
+        self.p, self.u, self.t, self.ds, self.it, self.stab = [], [], [], [], [], []
+        self.det, self.obs, self.ev_vals = [], [], []
+        self.sps: list[SpecialPoint] = []
+        self.status = B.MAX_STEPS
+        self.message = ""
+
+    def add(self, x, t, ds, its, det_sign):
+        n = self.core.n
+        obs, stab = self.core.observe(x[:n], x[n])
+        self.p.append(float(x[n]))
+        self.u.append(x[:n].copy())
+        self.t.append(t.copy())
+        self.ds.append(ds)
+        self.it.append(its)
+        self.stab.append(stab)
+        self.det.append(det_sign)
+        self.obs.append(obs)
+        self.ev_vals.append({k: float(g(x[:n], x[n])) for k, g in self.events.items()})
+
+
+def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_first=False):
+    s = core.s
+    n = core.n
+    run = _Run(core, events, stop_on, callback)
+    run.add(x0, t0, 0.0, 0, det0)
+    x, t = x0.copy(), t0.copy()
+    ds = s.ds0
+    cos_turn = math.cos(s.max_turn)
+    mp = s.corrector == "moore-penrose"
+    for step in range(1, s.max_steps + 1):
+        # ---- predictor-corrector with step rejection
+        last_reason = ""
+        while True:
+            x_pred = x + ds * t
+            row = core.wrow(t)
+            res = core.correct(x_pred, row, float(row @ x_pred), moore_penrose=mp)
+            if res.ok:
+                fac = res.fac
+                if fac is None:  # predictor exact: factorize once for the tangent
+                    fac = factorize(core.bmatrix(res.x, row))
+                if fac is None:
+                    res.ok, res.reason = False, "singular bordered Jacobian at the new point"
+                else:
+                    t_new = core.tangent_from(fac)
+                    if core.dot(t_new, t) < 0:  # only possible with Moore-Penrose rows
+                        t_new = -t_new
+                    if core.dot(t_new, t) < cos_turn:
+                        res.ok = False
+                        res.reason = (f"tangent turned by "
+                                      f"{math.degrees(math.acos(min(1, core.dot(t_new, t)))):.1f}"
+                                      f" deg > max_turn")
+            if res.ok:
+                break
+            last_reason = res.reason
+            if res.reason == "non-finite residual" and ds <= s.ds_min:
+                run.status = B.NON_FINITE
+            ds *= s.step_shrink
+            if ds < s.ds_min:
+                if run.status != B.NON_FINITE:
+                    run.status = B.STEP_TOO_SMALL
+                run.message = (
+                    f"step {step}: corrector failed at ds_min={s.ds_min:.1e} near p="
+                    f"{x[n]:.10g} ({last_reason}). Try a smaller ds_min, a larger max_newton, "
+                    "a looser newton_tol, or check the Jacobian (check_jacobian=True).")
+                return run
+        x_new = res.x
+        det_new = fac.det_sign()
+        # ---- parameter bounds: end exactly on the bound
+        bound = None
+        if x_new[n] > s.p_max:
+            bound = s.p_max
+        elif x_new[n] < s.p_min:
+            bound = s.p_min
+        if bound is not None:
+            a = (bound - x[n]) / (x_new[n] - x[n])
+            xg = x + a * (x_new - x)
+            e = np.zeros(n + 1)
+            e[n] = 1.0
+            rb = core.correct(xg, e, bound)
+            if not rb.ok or abs(bound - x[n]) <= 1e-14 * (1 + abs(bound)):
+                run.status = B.PARAMETER_BOUND
+                run.message = (f"reached the parameter bound {bound!r} (p={x[n]:.10g}; the point "
+                               "on the bound itself was not computed: "
+                               f"{rb.reason or 'start already on the bound'}).")
+                return run
+            x_new = rb.x
+            fb = factorize(core.bmatrix(x_new, core.wrow(t)))
+            t_new = core.tangent_from(fb) if fb is not None else t_new
+            det_new = fb.det_sign() if fb is not None else det_new
+        run.add(x_new, t_new, ds, res.iters, det_new)
+        k = len(run.p) - 1
+        _detect(core, run, k, skip_first=(skip_first and k == 1))
+        stop = None
+        for sp_ in run.sps:
+            if sp_.kind == "event" and sp_.index == k and sp_.name in stop_on:
+                stop = sp_
+        if bound is not None:
+            run.status = B.PARAMETER_BOUND
+            run.message = f"reached the parameter bound p={bound!r}."
+            return run
+        if stop is not None:
+            run.status = B.STOPPED
+            run.message = f"terminal event {stop.name!r} at p={stop.p:.12g}."
+            return run
+        if callback is not None:
+            info = {"step": step, "p": x_new[n], "u": x_new[:n], "ds": ds,
+                    "newton_iterations": res.iters, "stability": run.stab[-1]}
+            if callback(info) is False:
+                run.status = B.STOPPED
+                run.message = f"stopped by the callback at step {step} (p={x_new[n]:.10g})."
+                return run
+        # ---- closed loop (isola): back at the start, heading the same way
+        if step > 3 and math.sqrt(core.dot(x_new - x0, x_new - x0)) < 0.5 * ds \
+                and core.dot(t_new, t0) > 0.9:
+            run.status = B.LOOP_CLOSED
+            run.message = f"the branch closed on itself after {step} steps (an isola)."
+            return run
+        # ---- adapt the step: grow after easy convergence
+        if res.iters <= s.newton_easy:
+            ds = min(ds * s.step_grow, s.ds_max)
+        x, t = x_new, t_new
+    run.status = B.MAX_STEPS
+    run.message = (f"reached max_steps={s.max_steps} at p={x[n]:.10g}. Try increasing "
+                   "max_steps or ds_max, or set p_min/p_max to stop at a parameter value.")
+    return run
+
+
+def _point_at(core, x_a, t_a, s_arc):
+    """Corrected point at arclength ``s_arc`` from ``x_a`` along ``t_a``."""
+    row = core.wrow(t_a)
+    xp = x_a + s_arc * t_a
+    return core.correct(xp, row, float(row @ xp), tol=core.s.newton_tol,
+                        max_iter=2 * core.s.max_newton)
+
+
+def _bisect_on_arc(core, run, k, func, fa, fb):
+    """Root of ``func(x)`` between points k-1 and k, by Brent's method in arclength."""
+    xa = np.concatenate([run.u[k - 1], [run.p[k - 1]]])
+    xb = np.concatenate([run.u[k], [run.p[k]]])
+    ta = run.t[k - 1]
+    sb = core.dot(xb - xa, ta)
+    cache = {}
+
+    def f(sv):
+        if sv == 0.0:
+            return fa
+        if sv == sb:
+            return fb
+        r = _point_at(core, xa, ta, sv)
+        if not r.ok:
+            raise _LocateError(r.reason)
+        val = func(r.x)
+        cache[sv] = (r.x, val)
+        return val
+
+    xtol = core.s.locate_tol * max(1.0, abs(sb))
+    try:
+        sroot = sopt.brentq(f, 0.0, sb, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=60)
+    except (_LocateError, ValueError, RuntimeError):
+        return None, abs(sb)
+    if sroot in cache:
+        return cache[sroot][0], xtol
+    r = _point_at(core, xa, ta, sroot)
+    return (r.x if r.ok else None), xtol
+
+
+class _LocateError(Exception):
+    pass
+
+
+def _detect(core, run, k, skip_first=False):
+    """Detect (and locate) special points between points k-1 and k.
+
+    ``skip_first`` skips folds and branch points on this interval: used when
+    point k-1 is itself a branch point (after switching), where both tests
+    are ill-defined.
+    """
+    s = core.s
+    n = core.n
+    ta, tb = run.t[k - 1], run.t[k]
+    # ---- folds: dp/ds changes sign
+    if s.detect_folds and not skip_first and ta[n] * tb[n] < 0:
+        j = k - 1 if abs(ta[n]) < abs(tb[n]) else k
+        sp = SpecialPoint("fold", k, run.p[j], run.u[j].copy(),
+                          abs(run.p[k] - run.p[k - 1]), False, "", {})
+        if s.locate:
+            uf, pf, kern, ok, prec, its, msg = _locate_fold(
+                core.ev, run.u[j], run.p[j], run.t[j], s.locate_tol)
+            # A located fold must lie near the bracket; else keep the bracket.
+            span = abs(run.p[k] - run.p[k - 1]) + 1e-12 * (1 + abs(run.p[k]))
+            if ok and abs(pf - run.p[j]) <= 10 * span:
+                sp.p, sp.u, sp.precision, sp.located = float(pf), uf, prec, True
+                sp.data["kernel"] = kern
+                obs, _ = core.observe(uf, pf)
+                sp.data["observables"] = obs
+            sp.data["iterations"] = its
+            if msg:
+                sp.data["message"] = msg
+        run.sps.append(sp)
+    # ---- branch points: the bordered determinant changes sign
+    if s.detect_branch_points and not skip_first and run.det[k - 1] * run.det[k] < 0:
+        sp = SpecialPoint("branch_point", k, run.p[k], run.u[k].copy(),
+                          abs(run.p[k] - run.p[k - 1]), False, "", {})
+        if s.locate:
+            row = core.wrow(ta)
+            xa = np.concatenate([run.u[k - 1], [run.p[k - 1]]])
+            xb = np.concatenate([run.u[k], [run.p[k]]])
+            fa = core.bp_test(xa, row)[0]
+            fb = core.bp_test(xb, row)[0]
+            xr, prec = _bisect_on_arc(core, run, k, lambda x: core.bp_test(x, row)[0], fa, fb)
+            if xr is not None:
+                psi, y, fac = core.bp_test(xr, row)
+                sp.p, sp.u, sp.precision, sp.located = float(xr[n]), xr[:n].copy(), prec, True
+                if fac is not None:
+                    phi = core.normalize(y)
+                    left = fac.solve(core.bc, trans=True)[:n]
+                    sp.data["kernel"] = phi
+                    sp.data["left_kernel"] = left / np.linalg.norm(left)
+                sp.data["test_function"] = psi
+                # Tangent of the computed branch, interpolated to the point.
+                tm = ta + tb
+                sp.data["tangent"] = core.normalize(tm)
+        if "tangent" not in sp.data:
+            sp.data["tangent"] = tb.copy()
+        run.sps.append(sp)
+    # ---- stability changes
+    if run.stab[k - 1] >= 0 and run.stab[k] >= 0 and run.stab[k - 1] != run.stab[k]:
+        run.sps.append(SpecialPoint(
+            "stability", k, run.p[k], run.u[k].copy(), abs(run.p[k] - run.p[k - 1]), False,
+            f"{run.stab[k - 1]} -> {run.stab[k]}",
+            {"stability": [run.stab[k - 1], run.stab[k]]}))
+    # ---- user events
+    for name, g in run.events.items():
+        ga, gb = run.ev_vals[k - 1][name], run.ev_vals[k][name]
+        if ga * gb < 0 or (gb == 0 and ga != 0):
+            sp = SpecialPoint("event", k, run.p[k], run.u[k].copy(),
+                              abs(run.p[k] - run.p[k - 1]), False, name, {})
+            if s.locate:
+                xr, prec = _bisect_on_arc(core, run, k, lambda x, g=g: float(g(x[:n], x[n])),
+                                          ga, gb)
+                if xr is not None:
+                    sp.p, sp.u, sp.precision, sp.located = float(xr[n]), xr[:n].copy(), prec, True
+            run.sps.append(sp)
+
+
+def _normalize_events(events):
+    if events is None:
+        return {}
+    if isinstance(events, Mapping):
+        out = dict(events)
+    else:
+        out = {}
+        for g in events:
+            out[getattr(g, "__name__", f"event{len(out)}")] = g
+    for k, g in out.items():
+        if not callable(g):
+            raise TypeError(f"events[{k!r}]: expected a callable g(u, p) -> float; got "
+                            f"{type(g).__name__}.")
+    return out
+
+
+def _assemble(core, runs, problem, settings, extra_meta, parameter="p") -> Branch:
+    """Join one or two direction runs into a Branch (backward part reversed)."""
+    n = core.n
+    if len(runs) == 1:
+        parts = [(runs[0], False)]
+    else:
+        parts = [(runs[0], True), (runs[1], False)]
+    p, u, t, ds, it, st, obs = [], [], [], [], [], [], []
+    sps = []
+    offset = 0
+    for run, rev in parts:
+        m = len(run.p)
+        idx = list(range(m - 1, -1, -1)) if rev else (range(1, m) if offset else range(m))
+        for i in idx:
+            p.append(run.p[i])
+            u.append(run.u[i])
+            t.append(-run.t[i] if rev else run.t[i])
+            ds.append(run.ds[i])
+            it.append(run.it[i])
+            st.append(run.stab[i])
+            obs.append(run.obs[i])
+        for sp in run.sps:
+            if rev:
+                sp.index = m - sp.index  # bracket (i-1, i) -> (m-1-i, m-i)
+            else:
+                sp.index = sp.index + offset
+            sps.append(sp)
+        offset += (m - 1) if not rev else (m - 1)
+    sps.sort(key=lambda sp: sp.index)
+    m = len(p)
+    names = sorted({k for o in obs for k in o})
+    observables = {k: np.array([o.get(k, np.nan) for o in obs], dtype=float) for k in names}
+    ends = [r.status for r in runs]
+    if len(runs) == 2:
+        message = f"backward: {runs[0].message} forward: {runs[1].message}"
+        # The worse end decides: failures before bounds before max_steps.
+        status = max(ends, key=lambda c: {B.START_FAILED: 5, B.NON_FINITE: 4,
+                                          B.STEP_TOO_SMALL: 3}.get(c, 0))
+    else:
+        message, status = runs[0].message, runs[0].status
+    if m:
+        if len(runs) == 2:
+            sps.insert(0, SpecialPoint("endpoint", 0, p[0], u[0].copy(), 0.0, True,
+                                       "backward end"))
+        sps.append(SpecialPoint("endpoint", m - 1, p[-1], u[-1].copy(), 0.0, True,
+                                "forward end" if len(runs) == 2 else "end"))
+    meta = {
+        "problem": getattr(problem, "name", type(problem).__name__),
+        "n_unknowns": n,
+        "settings": settings.to_dict(),
+        "package": "continuation (elastocap)",
+        "version": package_version(),
+        "end_status": [B.STATUS_NAMES.get(c, c) for c in ends],
+        "nfev": core.ev.nfev,
+        "njev": core.ev.njev,
+    }
+    meta.update(extra_meta)
+    keep = settings.store_states
+    return Branch(
+        p=np.array(p, dtype=float),
+        u=np.array(u) if keep and m else None,
+        tangent=np.array(t) if keep and m else None,
+        ds=np.array(ds, dtype=float),
+        newton_iterations=np.array(it, dtype=int),
+        stability=np.array(st, dtype=int),
+        observables=observables,
+        special_points=sps,
+        status=status,
+        message=message,
+        parameter=parameter,
+        metadata=meta,
+    )
+
+
+def _failed(problem, settings, n, message, p0, parameter="p") -> Branch:
+    return Branch(
+        p=np.empty(0), u=None, tangent=None, ds=np.empty(0),
+        newton_iterations=np.empty(0, dtype=int), stability=np.empty(0, dtype=int),
+        observables={}, special_points=[], status=B.START_FAILED, message=message,
+        parameter=parameter,
+        metadata={"problem": getattr(problem, "name", type(problem).__name__), "n_unknowns": n,
+                  "settings": settings.to_dict(), "version": package_version(), "p0": p0},
+    )
+
+
+def continue_branch(
+    problem,
+    u0,
+    p0: float,
+    settings: ContinuationSettings | None = None,
+    *,
+    events: Mapping[str, Callable] | None = None,
+    stop_on=(),
+    callback: Callable | None = None,
+    tangent=None,
+) -> Branch:
+    """Continue a branch of solutions of ``F(u, p) = 0`` from ``(u0, p0)``.
+
+    Newton-corrects ``u0`` at fixed ``p0``, then runs pseudo-arclength
+    continuation (Keller 1977; Moore-Penrose with ``corrector=
+    "moore-penrose"``) with one LU of the bordered matrix
+    ``[[dF/du, dF/dp], [tangent^T]]`` per Newton iteration. The tangent at a
+    new point comes from the last LU (one back-substitution); the sign of its
+    determinant, also free, detects branch points. Folds are located by
+    Newton on a minimally augmented system, branch points and events by
+    Brent's method along the arclength.
+
+    Parameters
+    ----------
+    problem : Problem
+        See :class:`continuation.Problem`.
+    u0 : array_like, shape (n,)
+        Initial guess (corrected by Newton at fixed ``p0``).
+    p0 : float
+    settings : ContinuationSettings, optional
+    events : dict[str, callable] or list of callables, optional
+        User functions ``g(u, p) -> float``; a sign change between two points
+        is located and recorded as a special point of kind ``"event"``.
+    stop_on : collection of str
+        Names of events that end the run (status ``STOPPED``).
+    callback : callable, optional
+        Called after each accepted step with a dict (``step, p, u, ds,
+        newton_iterations, stability``); returning ``False`` stops the run.
+    tangent : array_like, shape (n + 1,), optional
+        Initial tangent (du/ds, dp/ds); default: computed at the start and
+        oriented by ``settings.direction``.
+
+    Returns
+    -------
+    Branch
+        Never raises for a numerical failure: ``status``/``message`` say why
+        the run ended, and every computed point is kept.
+
+    Raises
+    ------
+    ValueError
+        Invalid input (shapes, non-finite values), naming the argument.
+    JacobianError
+        If ``settings.check_jacobian`` and a supplied derivative disagrees
+        with finite differences.
+    """
+    t_start = time.perf_counter()
+    settings = ContinuationSettings() if settings is None else settings
+    if not isinstance(settings, ContinuationSettings):
+        raise TypeError(f"settings: expected ContinuationSettings; got {type(settings).__name__}")
+    u0 = np.array(u0, dtype=float).ravel()
+    if u0.size == 0 or not np.all(np.isfinite(u0)):
+        raise ValueError(f"u0: expected a non-empty finite array; got {u0!r:.200}")
+    if not math.isfinite(float(p0)):
+        raise ValueError(f"p0: expected a finite float; got {p0!r}")
+    p0 = float(p0)
+    ev = Evaluator(problem)
+    F0 = ev.F(u0, p0)
+    if F0.shape != u0.shape:
+        raise ValueError(f"problem.residual(u0, p0) returned shape {F0.shape}; expected "
+                         f"{u0.shape} (the shape of u0): F must be square in u.")
+    ev.warn_if_fd()
+    n = u0.size
+    if settings.check_jacobian and np.all(np.isfinite(F0)):
+        check_jacobian(problem, u0, p0)
+    core = _Core(ev, settings, n)
+    events = _normalize_events(events)
+    unknown = set(stop_on) - set(events)
+    if unknown:
+        raise ValueError(f"stop_on: {sorted(unknown)} are not event names; events: "
+                         f"{sorted(events)}")
+    # ---- Newton at fixed p0
+    x0 = np.concatenate([u0, [p0]])
+    e = np.zeros(n + 1)
+    e[n] = 1.0
+    with np.errstate(all="ignore"):
+        r0 = core.correct(x0, e, p0, max_iter=max(2 * settings.max_newton, 20))
+        if not r0.ok:
+            return _failed(problem, settings, n, (
+                f"Newton at the start p0={p0!r} failed: {r0.reason} (max|F|={r0.normF:.2e}, "
+                f"newton_tol={settings.newton_tol:.1e}). Try a better u0, a looser newton_tol, "
+                "or a p0 away from a fold/branch point (a singular dF/du there stops Newton "
+                "at fixed p)."), p0)
+        x0 = r0.x
+        if tangent is None:
+            t0, msg = _start_tangent(ev, x0[:n], p0)
+            if t0 is None:
+                return _failed(problem, settings, n, msg, p0)
+            t0 = core.normalize(t0)
+            if t0[n] < 0 or (t0[n] == 0 and np.sum(t0[:n]) < 0):
+                t0 = -t0
+        else:
+            t0 = core.normalize(np.asarray(tangent, dtype=float).ravel())
+            if t0.size != n + 1:
+                raise ValueError(f"tangent: expected shape ({n + 1},); got {t0.shape}")
+        fac0 = factorize(core.bmatrix(x0, core.wrow(t0)))
+        det0 = fac0.det_sign() if fac0 is not None else 0
+        runs = []
+        dirs = [settings.direction] if settings.direction != 0 else [-1, 1]
+        for d in dirs:
+            tt = t0 if d == 1 else -t0
+            runs.append(_run_direction(core, x0, tt, det0, events, set(stop_on), callback,
+                                       skip_first=(det0 == 0)))
+    br = _assemble(core, runs, problem, settings, {"p0": p0})
+    br.metadata["wall_time_s"] = time.perf_counter() - t_start
+    return br
+
+
+def switch_branch(
+    problem,
+    point: SpecialPoint,
+    settings: ContinuationSettings | None = None,
+    *,
+    ds: float | None = None,
+    events=None,
+    stop_on=(),
+    callback=None,
+) -> Branch:
+    """Continue the other branch through a located simple branch point.
+
+    The direction of the bifurcating branch solves the algebraic bifurcation
+    equation (Keller 1977; AUTO's branch switching): with ``t1`` the known
+    tangent, ``phi`` the second null vector of ``[dF/du, dF/dp]`` and ``psi``
+    its left null vector, ``c_ij = psi . D^2F[e_i, e_j]`` (``e_1 = t1``,
+    ``e_2 = phi``, second derivatives by central differences of the
+    Jacobian); the root other than ``t1`` is ``t2 = -c22/(2 c12) t1 + phi``.
+    The run goes both ways from the branch point. The first point of each
+    side is checked to lie on the new branch (its secant is closer to ``t2``
+    than to ``t1``); if not, that side ends with status ``START_FAILED`` and a
+    message, never silently on the old branch.
+
+    Parameters
+    ----------
+    problem : Problem
+    point : SpecialPoint
+        A located branch point from :func:`continue_branch`.
+    settings : ContinuationSettings, optional
+        ``direction`` is ignored: both sides are computed (0) unless it is +-1.
+    ds : float, optional
+        First step off the branch point; default ``settings.ds0``.
+    events, stop_on, callback
+        As in :func:`continue_branch`.
+
+    Returns
+    -------
+    Branch
+        Starts at one side, passes through the branch point, ends at the other.
+    """
+    settings = ContinuationSettings() if settings is None else settings
+    if not isinstance(point, SpecialPoint) or point.kind != "branch_point":
+        raise ValueError(f"point: expected a SpecialPoint of kind 'branch_point'; got {point!r}")
+    if not point.located or "kernel" not in point.data:
+        raise ValueError(
+            f"point: the branch point at p={point.p:.10g} was only bracketed, not located "
+            "(no kernel vector). Rerun continue_branch with locate=True and a smaller ds_max.")
+    ev = Evaluator(problem)
+    ev.warn_if_fd()
+    u = np.asarray(point.u, dtype=float)
+    n = u.size
+    ds = settings.ds0 if ds is None else float(ds)
+    settings = settings.replace(ds0=min(max(ds, settings.ds_min), settings.ds_max))
+    core = _Core(ev, settings, n)
+    x = np.concatenate([u, [point.p]])
+    t1 = core.normalize(np.asarray(point.data["tangent"], dtype=float))
+    phi = np.asarray(point.data["kernel"], dtype=float)
+    phi = core.normalize(phi - core.dot(phi, t1) * t1)
+    psi = np.asarray(point.data["left_kernel"], dtype=float)
+    with np.errstate(all="ignore"):
+        c11 = _d2(core, x, t1, t1, psi)
+        c12 = _d2(core, x, t1, phi, psi)
+        c22 = _d2(core, x, phi, phi, psi)
+    # Two roots of c11 a^2 + 2 c12 a b + c22 b^2 = 0; one is ~t1 (a=1, b=0 when
+    # c11 ~ 0). The other: b = 1, a = -c22 / (2 c12). A vanishing c12 means a
+    # degenerate (non-simple) branch point: fall back to phi, and say so.
+    note = ""
+    if abs(c12) > 1e-8 * max(abs(c11), abs(c22), 1e-300):
+        a = -c22 / (2.0 * c12)
+    else:
+        a = 0.0
+        note = " (c12 ~ 0: degenerate branch point, used the kernel direction)"
+    t2 = core.normalize(a * t1 + phi)
+    events = _normalize_events(events)
+    runs = []
+    dirs = [settings.direction] if settings.direction != 0 else [-1, 1]
+    with np.errstate(all="ignore"):
+        for d in dirs:
+            tt = t2 if d == 1 else -t2
+            run = _run_direction(core, x, tt, 0, events, set(stop_on), callback,
+                                 skip_first=True)
+            if len(run.p) > 1:
+                x1 = np.concatenate([run.u[1], [run.p[1]]])
+                sec = core.normalize(x1 - x)
+                if abs(core.dot(sec, t1)) >= abs(core.dot(sec, t2)):
+                    run.status = B.START_FAILED
+                    run.message = (
+                        f"branch switching at p={point.p:.10g} landed on the original branch "
+                        f"(secant/old tangent cosine {abs(core.dot(sec, t1)):.3f}); the computed "
+                        "points were discarded. Try a smaller ds or check that the branch point "
+                        "is simple." + note)
+                    del run.p[1:], run.u[1:], run.t[1:], run.ds[1:], run.it[1:]
+                    del run.stab[1:], run.det[1:], run.obs[1:], run.ev_vals[1:]
+                    run.sps = []
+                elif note:
+                    run.message += note
+            runs.append(run)
+    br = _assemble(core, runs, problem, settings,
+                   {"switched_at": float(point.p), "abe": [c11, c12, c22]})
+    j = (len(runs[0].p) - 1) if len(runs) == 2 else 0
+    bp = SpecialPoint("branch_point", j, float(point.p), u.copy(), point.precision, True,
+                      "switched here", {"tangent": t2, "old_tangent": t1})
+    br.special_points.insert(1 if len(runs) == 2 else 0, bp)
+    br.special_points.sort(key=lambda sp: sp.index)
+    return br
+
+
+def _d2(core, x, a, b, psi):
+    """``psi . D^2 F(x)[a, b]`` by central differences of ``[J, F_p] b`` along ``a``."""
+    n = core.n
+    ev = core.ev
+    scale = 1.0 + float(np.max(np.abs(x)))
+    h = _FD2 * scale / max(float(np.max(np.abs(a))), 1e-300)
+
+    def jext(y):
+        return np.asarray(ev.J(y[:n], y[n]) @ b[:n]).ravel() + ev.Fp(y[:n], y[n]) * b[n]
+
+    return float(psi @ (jext(x + h * a) - jext(x - h * a))) / (2.0 * h)

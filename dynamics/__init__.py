@@ -1,0 +1,57 @@
+"""dynamics: a planar inextensible discrete elastic rod time-stepper with pluggable effects.
+
+Depends only on numpy and numba.  (Not the unrelated PyPI project of the same name.)
+
+Quick use::
+
+    from dynamics import Rod, Gravity, Ground, simulate
+    rod = Rod.straight(100, 4.6, mu=1.0, B=1.0)
+    res = simulate(rod, (Gravity(1.0), Ground()), dt=1e-3, t_end=10.0)
+"""
+
+from .bending import bending_energy, bending_force_add, bending_gradient, discrete_curvature
+from .constraints import constraint_error
+from .effects import (
+    Clamp,
+    Damping,
+    DistributedLoad,
+    Effect,
+    Gravity,
+    Ground,
+    PointLoad,
+)
+from .reference import euler_bernoulli_omega
+from .rod import Rod
+from .stepper import (
+    DT_BOUND_C,
+    Event,
+    RestCriterion,
+    SimulationResult,
+    compile_stepper,
+    simulate,
+    stable_dt,
+)
+
+__all__ = [
+    "Rod",
+    "simulate",
+    "Event",
+    "RestCriterion",
+    "SimulationResult",
+    "stable_dt",
+    "DT_BOUND_C",
+    "compile_stepper",
+    "Effect",
+    "Gravity",
+    "Ground",
+    "Damping",
+    "PointLoad",
+    "DistributedLoad",
+    "Clamp",
+    "bending_energy",
+    "bending_gradient",
+    "bending_force_add",
+    "discrete_curvature",
+    "constraint_error",
+    "euler_bernoulli_omega",
+]

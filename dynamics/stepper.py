@@ -1,0 +1,728 @@
+"""RATTLE time stepper specialised to the effects present, and :func:`simulate`.
+
+Integrator
+----------
+One step of size ``dt`` (Andersen 1983, "RATTLE"; Leimkuhler & Reich 2004, sec. 7.2),
+with damping split around it (Strang):
+
+1. damping effects: exact decay of ``v`` over ``dt/2``;
+2. half kick ``v_h = v + dt/2 M^-1 F(x)``; drift ``x* = x + dt v_h``;
+3. constraint effects, stage 0 (clamps, ground hold coordinates of ``x*``);
+4. SHAKE: project ``x*`` onto the edge lengths (Newton + tridiagonal solve);
+   ``v_h = (x_new - x)/dt``;
+5. forces at ``x_new``; half kick ``v = v_h + dt/2 W F(x_new)``;
+6. constraint effects, stage 1; RATTLE velocity projection (``G v = 0``);
+7. damping effects over ``dt/2``.
+
+Without damping and contact the map is symplectic and time-reversible, so the energy
+error stays bounded, O(dt**2), over long runs (``tests/dynamics/test_energy.py``).
+
+Specialisation
+--------------
+For each distinct tuple of effect kernels the module generates the source of a stepper
+(``_forces``, ``prepare``, ``run``) that calls exactly those kernels, writes it to a cache
+directory and imports it, so that numba's on-disk cache (``cache=True``) works on it and
+a second process loads the compiled loop instead of compiling it.  An absent effect costs
+nothing, and all the steps between two output frames or events run inside one compiled
+call (no Python per step).  The alternative, a generic loop over a tuple of first-class
+functions, cannot be cached by numba and calls kernels indirectly; see
+``benchmarks/dynamics_speed.py`` for the overhead measured against a bare kernel loop.
+
+Cache directory: ``$DYNAMICS_CACHE_DIR``, else ``$XDG_CACHE_HOME/elastocap-dynamics``,
+else ``~/.cache/elastocap-dynamics``, else the system temporary directory.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from .effects import KINDS
+from .rod import Rod
+
+__all__ = [
+    "Event",
+    "RestCriterion",
+    "SimulationResult",
+    "simulate",
+    "stable_dt",
+    "DT_BOUND_C",
+    "compile_stepper",
+    "cache_dir",
+]
+
+#: Explicit stability constant of velocity Verlet for DER bending:
+#: ``dt_max = DT_BOUND_C * h_min**2 * sqrt(mu / B)``.  Linear analysis of the discrete
+#: beam (stencil [1, -4, 6, -4, 1] / h**4, highest mode omega = 4 sqrt(B/mu) / h**2, Verlet
+#: stable for omega dt < 2) gives C = 0.5.  Measured by bisection on free rods of 25, 100,
+#: 200, 400 edges with random small perturbations (energy growth over 3e4 steps): the
+#: threshold is C = 0.5000-0.5019.  Curvature stiffens DER bending by sec**2(psi/2)
+#: (1.1 at a turning angle of 0.6 rad per edge), hence a 10% margin: C = 0.45.  Accuracy
+#: usually asks for less (the energy error grows as dt**2, see the tests).
+DT_BOUND_C = 0.45
+
+#: Statuses: code -> (name, message template)
+_STATUS = {
+    0: ("completed", "reached t_end"),
+    1: ("at_rest", "stopped at rest: kinetic energy below {thr:g} for {dur:g} time units"),
+    2: ("shake_failed", "inextensibility projection (SHAKE) did not converge"),
+    3: ("non_finite", "non-finite state (NaN/inf)"),
+}
+
+
+def cache_dir() -> str:
+    """Directory where generated stepper modules (and numba's cache) live."""
+    cand = [os.environ.get("DYNAMICS_CACHE_DIR")]
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg:
+        cand.append(os.path.join(xdg, "elastocap-dynamics"))
+    cand.append(os.path.join(os.path.expanduser("~"), ".cache", "elastocap-dynamics"))
+    cand.append(os.path.join(tempfile.gettempdir(), "elastocap-dynamics"))
+    for d in cand:
+        if not d:
+            continue
+        try:
+            os.makedirs(d, exist_ok=True)
+            if os.access(d, os.W_OK):
+                return d
+        except OSError:
+            continue
+    raise OSError(f"no writable cache directory among {[c for c in cand if c]}")
+
+
+def stable_dt(edge_len, mu, B):
+    """Explicit stability bound of the bending force, ``DT_BOUND_C h_min**2 sqrt(mu/B)``.
+
+    Parameters
+    ----------
+    edge_len : array_like, shape (n_edges,)
+        Rest edge lengths (length units).
+    mu : float
+        Mass per unit length.
+    B : float
+        Bending modulus; ``B == 0`` gives ``inf``.
+
+    Returns
+    -------
+    float
+        Largest accepted time step (time units).
+    """
+    if B == 0:
+        return math.inf
+    h = float(np.min(edge_len))
+    return DT_BOUND_C * h * h * math.sqrt(mu / B)
+
+
+# ----------------------------------------------------------------------------- events
+
+
+@dataclass(frozen=True)
+class Event:
+    """At time ``time`` set parameter ``param`` of effect ``effect`` to ``value``.
+
+    Parameters
+    ----------
+    time : float
+        Event time; it fires at the first step boundary ``t_j >= time`` (within
+        ``1e-9 dt``), after the output frame at that time, if any, is recorded.
+    effect : str
+        Name of the target effect.
+    param : int or str
+        Index into ``effect.params`` or a name from ``effect.param_names``.
+    value : float
+        New value.
+    """
+
+    time: float
+    effect: str
+    param: int | str
+    value: float
+
+
+@dataclass(frozen=True)
+class RestCriterion:
+    """Stop once the kinetic energy stays below ``kinetic_energy`` for ``duration``.
+
+    Parameters
+    ----------
+    kinetic_energy : float
+        Threshold (energy units), > 0.  A useful scale is a small fraction of the energy
+        injected, e.g. ``1e-8 * mu * L * U**2``.
+    duration : float
+        Time (time units) during which the kinetic energy must stay below the threshold,
+        >= 0; checked every step inside the compiled loop.
+    """
+
+    kinetic_energy: float
+    duration: float
+
+    def __post_init__(self):
+        if not self.kinetic_energy > 0:
+            raise ValueError(
+                f"RestCriterion.kinetic_energy must be > 0, got {self.kinetic_energy!r}"
+            )
+        if not self.duration >= 0:
+            raise ValueError(f"RestCriterion.duration must be >= 0, got {self.duration!r}")
+
+
+# ----------------------------------------------------------------------------- result
+
+
+@dataclass
+class SimulationResult:
+    """Trajectory snapshots, energies and diagnostics of :func:`simulate`.
+
+    Attributes
+    ----------
+    times : ndarray, shape (n_frames,)
+        Frame times (step boundaries ``t0 + j dt``).
+    positions : ndarray, shape (n_frames, n_nodes, 2)
+        Node positions at the frames.
+    velocities : ndarray, shape (n_nodes, 2)
+        Velocities at the last frame.
+    energies : dict of str -> ndarray, shape (n_frames,)
+        ``"kinetic"``, ``"bending"`` and one entry per force effect (its potential);
+        ``"total"`` is their sum.
+    status : str
+        ``"completed"``, ``"at_rest"``, ``"shake_failed"`` or ``"non_finite"``.
+    success : bool
+        True for ``"completed"`` and ``"at_rest"``.
+    message : str
+        What happened and, on failure, where (time, node/edge, quantity) and what to try.
+    steps : int
+    t_final : float
+    constraint_error_max : float
+        Largest relative edge-length error after projection over the run.
+    shake_iterations_max, shake_iterations_mean : float
+        Newton iterations per step of the position projection.
+    wall_time : float
+        Seconds spent in the time loop (compilation excluded).
+    compile_time : float
+        Seconds spent generating/loading/compiling the stepper in this call.
+    events_fired : list of (time, effect, param_index, value)
+    dt : float
+    """
+
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    energies: dict
+    status: str
+    success: bool
+    message: str
+    steps: int
+    t_final: float
+    constraint_error_max: float
+    shake_iterations_max: float
+    shake_iterations_mean: float
+    wall_time: float
+    compile_time: float
+    dt: float
+    events_fired: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """Scalar diagnostics as a JSON-serialisable dict (no arrays)."""
+        return {
+            "status": self.status,
+            "success": self.success,
+            "message": self.message,
+            "steps": self.steps,
+            "t_final": self.t_final,
+            "dt": self.dt,
+            "constraint_error_max": self.constraint_error_max,
+            "shake_iterations_max": self.shake_iterations_max,
+            "shake_iterations_mean": self.shake_iterations_mean,
+            "wall_time": self.wall_time,
+            "compile_time": self.compile_time,
+            "events_fired": [list(e) for e in self.events_fired],
+            "n_frames": int(self.times.size),
+        }
+
+    def save_npz(self, path):
+        """Save arrays and the diagnostics (as JSON metadata) to ``path``."""
+        arrays = {"times": self.times, "positions": self.positions,
+                  "velocities": self.velocities}
+        for k, e in self.energies.items():
+            arrays["energy__" + k] = e
+        np.savez(path, meta=np.array(json.dumps(self.to_dict())), **arrays)
+
+    @classmethod
+    def load_npz(cls, path) -> SimulationResult:
+        """Load a file written by :meth:`save_npz`; refuses incomplete files by name."""
+        with np.load(path, allow_pickle=False) as f:
+            missing = [k for k in ("meta", "times", "positions", "velocities")
+                       if k not in f.files]
+            if missing:
+                raise ValueError(f"{path}: not a SimulationResult file, missing {missing}")
+            meta = json.loads(str(f["meta"]))
+            energies = {k[len("energy__"):]: f[k] for k in f.files if k.startswith("energy__")}
+            times, pos, vel = f["times"], f["positions"], f["velocities"]
+        meta.pop("n_frames", None)
+        meta["events_fired"] = [tuple(e) for e in meta["events_fired"]]
+        return cls(times=times, positions=pos, velocities=vel, energies=energies, **meta)
+
+
+# ----------------------------------------------------------------------------- codegen
+
+
+def _kernel_ref(effect):
+    """(module, name) through which the generated module imports an effect's kernel."""
+    k = getattr(effect, "kernel", None)
+    k = getattr(k, "__func__", k)  # a dispatcher read through an instance is a bound method
+    if k is None or not hasattr(k, "py_func"):
+        raise TypeError(
+            f"effect {getattr(effect, 'name', effect)!r}: kernel must be a numba "
+            f"njit(cache=True) dispatcher, got {type(k).__name__}"
+        )
+    mod, name = k.__module__, k.__name__
+    ok = False
+    if mod != "__main__":
+        try:
+            ok = getattr(importlib.import_module(mod), name, None) is k
+        except ImportError:
+            ok = False
+    if not ok:
+        raise ValueError(
+            f"effect {effect.name!r}: kernel {mod}.{name} is not importable by that name; "
+            "define it at module level of an importable module (not in __main__ or inside "
+            "a function) so the generated stepper can import and cache it"
+        )
+    return mod, name
+
+
+def _generate_source(refs):
+    """Source of a stepper module for ``refs = [(kind, module, name), ...]``."""
+    imports, P = [], []
+    forces, damps, cons = [], [], []
+    for j, (kind, mod, name) in enumerate(refs):
+        alias = f"_k{j}"
+        imports.append(f"from {mod} import {name} as {alias}")
+        P.append(f"p{j}")
+        {"force": forces, "damping": damps, "constraint": cons}[kind].append((alias, f"p{j}"))
+    pargs = "".join(", " + p for p in P)
+    fargs = "".join(", " + p for _, p in forces)
+    L = []
+    L.append("# Generated by dynamics.stepper: a RATTLE stepper specialised to its effects.")
+    L.append("# Do not edit; the file name is a hash of this text and of the kernels' sources.")
+    L.append("import numba")
+    L.append("import numpy as np")
+    L.append("from dynamics.bending import bending_force_add")
+    L.append("from dynamics.constraints import shake, velocity_projection")
+    L += imports
+    L.append("")
+    L.append("")
+    L.append("@numba.njit(cache=True)")
+    L.append(f"def _forces(x, v, t, edge_len, mass, B, F, energy{fargs}):")
+    L.append("    for i in range(x.shape[0]):")
+    L.append("        F[i, 0] = 0.0")
+    L.append("        F[i, 1] = 0.0")
+    L.append("    energy[0] = bending_force_add(x, edge_len, B, F)")
+    for k, (alias, p) in enumerate(forces):
+        L.append(f"    energy[{k + 1}] = {alias}(x, v, t, {p}, edge_len, mass, F)")
+    L.append("")
+    L.append("")
+    L.append("@numba.njit(cache=True)")
+    L.append(f"def prepare(x, v, t, edge_len, winv0, wn, we{pargs}):")
+    L.append("    xn = wn[1]")
+    L.append("    winv = wn[3]")
+    L.append("    xn[:, :] = x")
+    L.append("    winv[:, :] = winv0")
+    for alias, p in cons:
+        L.append(f"    {alias}(xn, v, t, {p}, edge_len, winv, 0)")
+    L.append("    err, it, edge = shake(x, xn, winv, edge_len, we[0], we[1], we[2], we[3],"
+             " we[4], we[5], we[6])")
+    L.append("    x[:, :] = xn")
+    for alias, p in cons:
+        L.append(f"    {alias}(x, v, t, {p}, edge_len, winv, 1)")
+    L.append("    velocity_projection(x, v, winv, we[0], we[1], we[2], we[3], we[4], we[5],"
+             " we[6])")
+    L.append("    return err, it, edge")
+    L.append("")
+    L.append("")
+    L.append("@numba.njit(cache=True)")
+    L.append(f"def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, wn, we, energy, diag,"
+             f" rest{pargs}):")
+    L.append("    n = x.shape[0]")
+    L.append("    F = wn[0]")
+    L.append("    xn = wn[1]")
+    L.append("    vh = wn[2]")
+    L.append("    winv = wn[3]")
+    L.append("    a = we[0]")
+    L.append("    b = we[1]")
+    L.append("    c = we[2]")
+    L.append("    rhs = we[3]")
+    L.append("    dl = we[4]")
+    L.append("    cp = we[5]")
+    L.append("    dp = we[6]")
+    L.append("    half = 0.5 * dt")
+    L.append("    inv_dt = 1.0 / dt")
+    L.append(f"    _forces(x, v, t0, edge_len, mass, B, F, energy{fargs})")
+    L.append("    status = 0")
+    L.append("    steps = 0")
+    L.append("    for s in range(n_steps):")
+    L.append("        t = t0 + s * dt")
+    L.append("        t1 = t0 + (s + 1) * dt")
+    for alias, p in damps:
+        L.append(f"        {alias}(x, v, t, {p}, edge_len, mass, half)")
+    L.append("        for i in range(n):")
+    L.append("            for k in range(2):")
+    L.append("                vh[i, k] = v[i, k] + half * winv0[i, k] * F[i, k]")
+    L.append("                xn[i, k] = x[i, k] + dt * vh[i, k]")
+    L.append("                winv[i, k] = winv0[i, k]")
+    for alias, p in cons:
+        L.append(f"        {alias}(xn, vh, t1, {p}, edge_len, winv, 0)")
+    L.append("        err, it, edge = shake(x, xn, winv, edge_len, a, b, c, rhs, dl, cp, dp)")
+    L.append("        if it < 0:")
+    L.append("            status = 2")
+    L.append("            diag[4] = edge")
+    L.append("            diag[5] = err")
+    L.append("            break")
+    L.append("        if err > diag[0]:")
+    L.append("            diag[0] = err")
+    L.append("        if it > diag[2]:")
+    L.append("            diag[2] = it")
+    L.append("        diag[3] += it")
+    L.append("        for i in range(n):")
+    L.append("            for k in range(2):")
+    L.append("                vh[i, k] = (xn[i, k] - x[i, k]) * inv_dt")
+    L.append("                x[i, k] = xn[i, k]")
+    L.append(f"        _forces(x, vh, t1, edge_len, mass, B, F, energy{fargs})")
+    L.append("        for i in range(n):")
+    L.append("            for k in range(2):")
+    L.append("                v[i, k] = vh[i, k] + half * winv[i, k] * F[i, k]")
+    for alias, p in cons:
+        L.append(f"        {alias}(x, v, t1, {p}, edge_len, winv, 1)")
+    L.append("        velocity_projection(x, v, winv, a, b, c, rhs, dl, cp, dp)")
+    for alias, p in damps:
+        L.append(f"        {alias}(x, v, t1 - half, {p}, edge_len, mass, half)")
+    L.append("        steps += 1")
+    L.append("        ke = 0.0")
+    L.append("        for i in range(n):")
+    L.append("            ke += mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])")
+    L.append("        ke *= 0.5")
+    L.append("        if not np.isfinite(ke + np.sum(energy)):")
+    L.append("            status = 3")
+    L.append("            worst = 0")
+    L.append("            for i in range(n):")
+    L.append("                if not (np.isfinite(v[i, 0]) and np.isfinite(v[i, 1])")
+    L.append("                        and np.isfinite(x[i, 0]) and np.isfinite(x[i, 1])):")
+    L.append("                    worst = i")
+    L.append("                    break")
+    L.append("            diag[4] = worst")
+    L.append("            break")
+    L.append("        if rest[0] > 0.0:")
+    L.append("            if ke < rest[0]:")
+    L.append("                rest[2] += dt")
+    L.append("                if rest[2] >= rest[1]:")
+    L.append("                    status = 1")
+    L.append("                    break")
+    L.append("            else:")
+    L.append("                rest[2] = 0.0")
+    L.append("    return status, steps")
+    L.append("")
+    return "\n".join(L)
+
+
+def _fingerprint(refs):
+    """Hash of the files whose change must invalidate a generated stepper."""
+    files = set()
+    import dynamics
+
+    pkg = os.path.dirname(dynamics.__file__)
+    for f in ("bending.py", "constraints.py", "effects.py"):
+        files.add(os.path.join(pkg, f))
+    for _, mod, _ in refs:
+        f = getattr(sys.modules[mod], "__file__", None)
+        if f:
+            files.add(os.path.abspath(f))
+    h = hashlib.sha256()
+    h.update(numba.__version__.encode())
+    for f in sorted(files):
+        st = os.stat(f)
+        h.update(f"{f}:{st.st_mtime_ns}:{st.st_size}".encode())
+    return h.hexdigest()
+
+
+_MODULES: dict = {}
+
+
+def compile_stepper(effects=()):
+    """Return the generated stepper module for these effects (generate/import if needed).
+
+    Parameters
+    ----------
+    effects : sequence of effect objects
+        Only their ``kind`` and ``kernel`` matter (order included).
+
+    Returns
+    -------
+    module
+        With numba functions ``run``, ``prepare`` and ``_forces``.  Compilation happens
+        lazily at the first call (loaded from numba's cache when available).
+    """
+    refs = []
+    for e in effects:
+        if e.kind not in KINDS:
+            raise ValueError(
+                f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}"
+            )
+        refs.append((e.kind, *_kernel_ref(e)))
+    refs = tuple(refs)
+    if refs in _MODULES:
+        return _MODULES[refs]
+    src = _generate_source(refs)
+    digest = hashlib.sha256((src + _fingerprint(refs)).encode()).hexdigest()[:20]
+    modname = f"_dynamics_stepper_{digest}"
+    path = os.path.join(cache_dir(), modname + ".py")
+    if not os.path.exists(path):
+        # write atomically: parallel workers may race on the same file
+        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), suffix=".tmp")
+        with os.fdopen(fd, "w") as f:
+            f.write(src)
+        os.replace(tmp, path)
+    spec = importlib.util.spec_from_file_location(modname, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[modname] = module
+    spec.loader.exec_module(module)
+    _MODULES[refs] = module
+    return module
+
+
+# ----------------------------------------------------------------------------- simulate
+
+
+def _resolve_param(effect, param):
+    names = tuple(getattr(effect, "param_names", ()) or ())
+    if isinstance(param, str):
+        if param not in names:
+            raise ValueError(
+                f"event on effect {effect.name!r}: unknown parameter {param!r}; "
+                f"known names are {names}"
+            )
+        return names.index(param)
+    j = int(param)
+    if not 0 <= j < effect.params.size:
+        raise ValueError(
+            f"event on effect {effect.name!r}: parameter index {j} out of range "
+            f"[0, {effect.params.size})"
+        )
+    return j
+
+
+def _frame_steps(frames, t_end, dt):
+    if frames is None:
+        frames = 101
+    if np.isscalar(frames):
+        nf = int(frames)
+        if nf < 2:
+            raise ValueError(f"frames must be >= 2 when given as a count, got {frames!r}")
+        times = np.linspace(0.0, t_end, nf)
+    else:
+        times = np.asarray(frames, dtype=np.float64).ravel()
+        if times.size == 0 or np.any(times < 0) or np.any(times > t_end * (1 + 1e-12)):
+            raise ValueError(
+                f"frame times must lie in [0, t_end = {t_end:g}], got min "
+                f"{times.min() if times.size else None}, max "
+                f"{times.max() if times.size else None}"
+            )
+    idx = np.unique(np.rint(times / dt).astype(np.int64))
+    return idx
+
+
+def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t0=0.0,
+             check_dt=True):
+    """Integrate an inextensible planar rod with RATTLE under the given effects.
+
+    Parameters
+    ----------
+    rod : Rod
+        Initial state and material (not modified).
+    effects : sequence of effect objects
+        Built-in effects from :mod:`dynamics.effects` or any object following the effect
+        protocol described there; names must be unique.  Bending (modulus ``rod.B``) is
+        always included.  The effects' ``params`` arrays are used in place: events write
+        into them, so pass fresh effect objects to repeat a run.
+    dt : float
+        Time step (time units); must not exceed :func:`stable_dt` unless
+        ``check_dt=False``.
+    t_end : float
+        Duration of the run (time units), measured from ``t0``.
+    frames : int or array_like, optional
+        Number of equally spaced output frames on ``[0, t_end]`` (default 101), or the
+        frame times relative to ``t0`` (rounded to the nearest step boundary).
+    events : sequence of Event, optional
+        Parameter changes at given times (relative to ``t0``).
+    rest : RestCriterion, optional
+        Stop early once the rod is at rest; the final state is then appended as a frame.
+    t0 : float, optional
+        Initial time (passed to the kernels).
+    check_dt : bool, optional
+        Refuse a ``dt`` above the explicit stability bound of bending (default True).
+
+    Returns
+    -------
+    SimulationResult
+        Failures (SHAKE not converging, non-finite state) are reported in ``status`` and
+        ``message``, not raised; the frames up to the failure are kept.
+    """
+    if not isinstance(rod, Rod):
+        raise TypeError(f"rod must be a dynamics.Rod, got {type(rod).__name__}")
+    dt = float(dt)
+    t_end = float(t_end)
+    if not (dt > 0 and np.isfinite(dt)):
+        raise ValueError(f"dt must be > 0 and finite, got dt = {dt!r}")
+    if not (t_end >= 0 and np.isfinite(t_end)):
+        raise ValueError(f"t_end must be >= 0 and finite, got t_end = {t_end!r}")
+    dt_max = stable_dt(rod.edge_len, rod.mu, rod.B)
+    if check_dt and dt > dt_max:
+        h = float(rod.edge_len.min())
+        raise ValueError(
+            f"dt = {dt:.4g} exceeds the explicit stability bound of bending "
+            f"dt_max = C h**2 sqrt(mu/B) = {dt_max:.4g} (C = {DT_BOUND_C}, h = min edge "
+            f"length = {h:.4g}, mu = {rod.mu:.4g}, B = {rod.B:.4g}). Use dt <= {dt_max:.4g}, "
+            "or fewer edges (dt_max grows as h**2)."
+        )
+    effects = tuple(effects)
+    names = [e.name for e in effects]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"effect names must be unique; repeated: {dup}")
+    for e in effects:
+        p = getattr(e, "params", None)
+        if not (isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 1
+                and p.flags.c_contiguous):
+            raise TypeError(
+                f"effect {e.name!r}: params must be a 1-D C-contiguous float64 ndarray, got "
+                f"{type(p).__name__} {getattr(p, 'dtype', '')} {getattr(p, 'shape', '')}"
+            )
+    by_name = dict(zip(names, effects, strict=True))
+    ev = []
+    for e in events:
+        if e.effect not in by_name:
+            raise ValueError(f"event at t = {e.time:g}: no effect named {e.effect!r}; "
+                             f"effects are {names}")
+        if not 0 <= e.time <= t_end:
+            raise ValueError(f"event time {e.time!r} outside [0, t_end = {t_end:g}]")
+        j = _resolve_param(by_name[e.effect], e.param)
+        k = int(math.ceil(e.time / dt - 1e-9))
+        ev.append((k, by_name[e.effect], j, float(e.value)))
+    ev.sort(key=lambda r: r[0])
+
+    # compile (or load) the specialised stepper
+    tc = time.perf_counter()
+    mod = compile_stepper(effects)
+    params = tuple(e.params for e in effects)
+    n_forces = sum(e.kind == "force" for e in effects)
+    force_names = ["bending"] + [e.name for e in effects if e.kind == "force"]
+
+    x = rod.x.copy()
+    v = rod.v.copy()
+    n = x.shape[0]
+    edge_len = rod.edge_len.copy()
+    mass = rod.mass
+    winv0 = np.empty((n, 2))
+    winv0[:, 0] = 1.0 / mass
+    winv0[:, 1] = 1.0 / mass
+    wn = np.zeros((4, n, 2))
+    we = np.zeros((7, n - 1))
+    energy = np.zeros(1 + n_forces)
+    diag = np.zeros(8)
+    rest_arr = np.zeros(3)
+    if rest is not None:
+        rest_arr[0] = rest.kinetic_energy
+        rest_arr[1] = rest.duration
+    mod.prepare(x, v, t0, edge_len, winv0, wn, we, *params)
+    mod.run(x, v, t0, dt, 0, edge_len, mass, winv0, rod.B, wn, we, energy, diag,
+            rest_arr, *params)
+    compile_time = time.perf_counter() - tc
+
+    n_total = int(math.ceil(t_end / dt - 1e-9))
+    fidx = _frame_steps(frames, t_end, dt)
+    fidx = fidx[(fidx >= 0) & (fidx <= n_total)]
+    stops = sorted(set(fidx.tolist()) | {k for k, *_ in ev} | {n_total})
+    fset = set(fidx.tolist())
+
+    times, pos, ens, fired = [], [], [], []
+
+    def record(step):
+        times.append(t0 + step * dt)
+        pos.append(x.copy())
+        ke = 0.5 * float(np.sum(mass[:, None] * v * v))
+        ens.append(np.concatenate(([ke], energy)))
+
+    step = 0
+    status = 0
+    events_left = list(ev)
+    tw = time.perf_counter()
+    for stop in stops:
+        if stop > step:
+            status, done = mod.run(x, v, t0 + step * dt, dt, stop - step, edge_len, mass,
+                                   winv0, rod.B, wn, we, energy, diag, rest_arr, *params)
+            step += done
+            if status != 0:
+                break
+        if step in fset:
+            record(step)
+        while events_left and events_left[0][0] <= step:
+            _, eff, j, val = events_left.pop(0)
+            eff.params[j] = val
+            fired.append((t0 + step * dt, eff.name, j, val))
+            # re-evaluate forces and energies with the new parameter
+            mod.run(x, v, t0 + step * dt, dt, 0, edge_len, mass, winv0, rod.B, wn, we,
+                    energy, diag, rest_arr, *params)
+    wall = time.perf_counter() - tw
+
+    t_final = t0 + step * dt
+    name, msg = _STATUS[status]
+    if status == 1:
+        msg = msg.format(thr=rest.kinetic_energy, dur=rest.duration) + f" at t = {t_final:g}"
+        if not times or times[-1] != t_final:
+            record(step)
+    elif status == 2:
+        msg = (f"{msg} at t = {t_final + dt:g} (step {step + 1}): relative edge-length "
+               f"residual {diag[5]:.3g} at edge {int(diag[4])} after the iteration cap. "
+               f"The predicted motion per step is too large: try a smaller dt (now {dt:g}, "
+               f"stability bound {dt_max:.4g}) or check the forces for a blow-up.")
+    elif status == 3:
+        msg = (f"{msg} at t = {t_final:g} (step {step}) at node {int(diag[4])}: the "
+               f"integration blew up. Try a smaller dt (now {dt:g}, stability bound of "
+               f"bending {dt_max:.4g}); stiff external forces need their own dt limit.")
+    else:
+        msg = f"{msg} ({step} steps of dt = {dt:g})"
+    if times:
+        E = np.array(ens)
+        energies = {"kinetic": E[:, 0]}
+        for k, nm in enumerate(force_names):
+            energies[nm] = E[:, k + 1]
+        energies["total"] = E.sum(axis=1)
+    else:
+        energies = {k: np.zeros(0) for k in ["kinetic", *force_names, "total"]}
+    return SimulationResult(
+        times=np.array(times),
+        positions=np.array(pos).reshape(len(pos), n, 2),
+        velocities=v.copy(),
+        energies=energies,
+        status=name,
+        success=status in (0, 1),
+        message=msg,
+        steps=step,
+        t_final=t_final,
+        constraint_error_max=float(diag[0]),
+        shake_iterations_max=float(diag[2]),
+        shake_iterations_mean=float(diag[3] / step) if step else 0.0,
+        wall_time=wall,
+        compile_time=compile_time,
+        dt=dt,
+        events_fired=fired,
+    )

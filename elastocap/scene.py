@@ -1,0 +1,606 @@
+"""Scenes: TOML (or a built-in name) -> a validated, immutable :class:`Scene`.
+
+A scene is dimensionless: lengths in the scene's unit (l_ec for the no-gravity scenes,
+l_eg for the gravity ones), B, mu and gamma as given. Sections and keys::
+
+    [rod]         length, bending_modulus = 1, mass_per_length = 1
+    [drop]        area, wetted_length, line_tension = 1,
+                  center (arclength of the drop centre from S = 0; default L/2)
+                  or distance_from_end (the paper's x: centre at S = L - x)
+    [[drop.events]]  time, s1 and/or s2 (new contact arclengths: the secondary drop, Fig 5)
+    [effects]     gravity = 0 (g; 0 = off), ground = false (frictionless z >= 0), damping = 0
+    [spreading]   drop_radius, delta0, coefficient = 0.32 (lengths in scene units): converts
+                  Delta <-> We^(1/2) by the paper's spreading law
+    [numerics]    solver settings, see :data:`NUMERICS_KEYS`
+    [experiment]  dimensional SI inputs (see :class:`elastocap.units.Experiment`) standing in
+                  for [rod], [drop] and [spreading]; units g = mu = B = 1
+
+Every error is a :class:`SceneError` naming the key, the value received and what is allowed.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from elastocap import units
+
+__all__ = [
+    "Scene",
+    "SceneError",
+    "Rod",
+    "Drop",
+    "DropEvent",
+    "Effects",
+    "Spreading",
+    "Numerics",
+    "builtin_scene_names",
+    "load_scene",
+    "parse_override",
+]
+
+
+class SceneError(ValueError):
+    """Invalid scene input. ``key`` is the dotted key, ``value`` what was given."""
+
+    def __init__(self, key: str, value: Any, allowed: str):
+        self.key = key
+        self.value = value
+        self.allowed = allowed
+        super().__init__(f"{key}: got {value!r}; {allowed}")
+
+
+# ---------------------------------------------------------------------------------------------
+# schema: section -> key -> (kind, default). kind: "pos" (finite > 0), "nonneg" (finite >= 0),
+# "real" (finite), "bool", "int+" (integer >= 1), "str:<a|b|c>", "opt-pos" (None or > 0).
+# REQUIRED marks a key with no default.
+REQUIRED = object()
+
+ROD_KEYS: dict[str, tuple[str, Any]] = {
+    "length": ("pos", REQUIRED),
+    "bending_modulus": ("pos", 1.0),
+    "mass_per_length": ("pos", 1.0),
+}
+DROP_KEYS: dict[str, tuple[str, Any]] = {
+    "area": ("pos", REQUIRED),
+    "wetted_length": ("pos", REQUIRED),
+    "line_tension": ("pos", 1.0),
+    "center": ("real", None),
+    "distance_from_end": ("real", None),
+    "events": ("events", ()),
+}
+EVENT_KEYS: dict[str, tuple[str, Any]] = {
+    "time": ("nonneg", REQUIRED),
+    "s1": ("real", None),
+    "s2": ("real", None),
+}
+EFFECTS_KEYS: dict[str, tuple[str, Any]] = {
+    "gravity": ("nonneg", 0.0),
+    "ground": ("bool", False),
+    "damping": ("nonneg", 0.0),
+}
+SPREADING_KEYS: dict[str, tuple[str, Any]] = {
+    "drop_radius": ("pos", REQUIRED),
+    "delta0": ("nonneg", REQUIRED),
+    "coefficient": ("pos", units.SPREADING_COEFFICIENT),
+}
+#: Solver settings. Statics: Chebyshev points per segment, Newton tolerance, continuation
+#: steps. Dynamics: edges, time step (0 = automatic, a fraction of the stable bound), final
+#: time, rest criterion. Accuracy presets map to these (see README, "What accuracy costs").
+NUMERICS_KEYS: dict[str, tuple[str, Any]] = {
+    "accuracy": ("str:draft|default|publication", "default"),
+    "cheb_points": ("int+", 0),
+    "newton_tol": ("pos", 1e-11),
+    "max_steps": ("int+", 2000),
+    "n_edges": ("int+", 0),
+    "dt": ("nonneg", 0.0),
+    "t_max": ("pos", 200.0),
+    "rest_kinetic": ("pos", 1e-8),
+    "rest_time": ("pos", 1.0),
+}
+EXPERIMENT_KEYS: dict[str, tuple[str, Any]] = {
+    "drop_radius": ("pos", REQUIRED),
+    "areal_mass": ("pos", REQUIRED),
+    "length": ("pos", REQUIRED),
+    "impact_distance": ("pos", REQUIRED),
+    "surface_tension": ("pos", 0.072),
+    "liquid_density": ("pos", 1000.0),
+    "gravity": ("pos", 9.81),
+    "width": ("pos", 2e-3),
+    "impact_speed": ("nonneg", 0.0),
+    "bending_modulus": ("opt-pos", None),
+    "youngs_modulus": ("opt-pos", None),
+    "thickness": ("opt-pos", None),
+    "poisson_ratio": ("real", None),
+    "delta0": ("opt-pos", None),
+}
+SECTIONS: dict[str, dict[str, tuple[str, Any]]] = {
+    "rod": ROD_KEYS,
+    "drop": DROP_KEYS,
+    "effects": EFFECTS_KEYS,
+    "spreading": SPREADING_KEYS,
+    "numerics": NUMERICS_KEYS,
+    "experiment": EXPERIMENT_KEYS,
+}
+TOP_KEYS = {"name", "description", *SECTIONS}
+
+
+def _suggest(word: str, options) -> str:
+    close = difflib.get_close_matches(word, list(options), n=1, cutoff=0.5)
+    return f" Did you mean '{close[0]}'?" if close else ""
+
+
+def _check_value(key: str, kind: str, value: Any) -> Any:
+    """Validate one value against its kind; return the normalised value."""
+    if kind in ("pos", "nonneg", "real", "opt-pos"):
+        if kind == "opt-pos" and value is None:
+            return None
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise SceneError(key, value, "expected a number")
+        v = float(value)
+        if not math.isfinite(v):
+            raise SceneError(key, value, "expected a finite number (not NaN or inf)")
+        if kind in ("pos", "opt-pos") and v <= 0.0:
+            raise SceneError(key, value, "expected a number > 0")
+        if kind == "nonneg" and v < 0.0:
+            raise SceneError(key, value, "expected a number >= 0")
+        return v
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise SceneError(key, value, "expected true or false")
+        return value
+    if kind == "int+":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise SceneError(key, value, "expected a whole number")
+        if value < 0:
+            raise SceneError(key, value, "expected a whole number >= 0 (0 = preset default)")
+        return int(value)
+    if kind.startswith("str:"):
+        choices = kind[4:].split("|")
+        if value not in choices:
+            raise SceneError(key, value, f"expected one of {', '.join(choices)}")
+        return value
+    raise AssertionError(kind)
+
+
+def _read_section(raw: Any, name: str, schema: dict[str, tuple[str, Any]]) -> dict[str, Any]:
+    if not isinstance(raw, dict):
+        raise SceneError(name, raw, "expected a table of keys")
+    for k in raw:
+        if k not in schema:
+            raise SceneError(
+                f"{name}.{k}",
+                raw[k],
+                f"unknown key; allowed keys in [{name}]: {', '.join(schema)}."
+                + _suggest(k, schema),
+            )
+    out: dict[str, Any] = {}
+    for k, (kind, default) in schema.items():
+        if kind == "events":
+            continue
+        if k in raw:
+            out[k] = _check_value(f"{name}.{k}", kind, raw[k])
+        elif default is REQUIRED:
+            raise SceneError(f"{name}.{k}", None, f"missing: [{name}] needs '{k}'")
+        else:
+            out[k] = default
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Rod:
+    """An inextensible, naturally straight elastica. length L, bending_modulus B, mass per
+    unit length mu (scene units)."""
+
+    length: float
+    bending_modulus: float = 1.0
+    mass_per_length: float = 1.0
+
+
+@dataclass(frozen=True)
+class DropEvent:
+    """At ``time``, the contact arclengths jump to ``s1`` / ``s2`` (None = unchanged)."""
+
+    time: float
+    s1: float | None = None
+    s2: float | None = None
+
+
+@dataclass(frozen=True)
+class Drop:
+    """A quasi-static 2D drop of area A pinned at S1 = center - Delta/2, S2 = center + Delta/2."""
+
+    area: float
+    wetted_length: float
+    center: float
+    line_tension: float = 1.0
+    events: tuple[DropEvent, ...] = ()
+
+    @property
+    def s1(self) -> float:
+        return self.center - 0.5 * self.wetted_length
+
+    @property
+    def s2(self) -> float:
+        return self.center + 0.5 * self.wetted_length
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Effects the scene names. gravity g (0 = off), ground (frictionless z >= 0), damping
+    (viscous drag coefficient per unit length, force -c v per length)."""
+
+    gravity: float = 0.0
+    ground: bool = False
+    damping: float = 0.0
+
+    def names(self) -> tuple[str, ...]:
+        """The effects that are on, in a fixed order."""
+        out = []
+        if self.gravity > 0.0:
+            out.append("gravity")
+        if self.ground:
+            out.append("ground")
+        if self.damping > 0.0:
+            out.append("damping")
+        return tuple(out)
+
+
+@dataclass(frozen=True)
+class Spreading:
+    """The paper's spreading law (Delta - delta0) / (2 R) = coefficient * We^(1/2), scene units."""
+
+    drop_radius: float
+    delta0: float
+    coefficient: float = units.SPREADING_COEFFICIENT
+
+    def delta(self, we_sqrt: float) -> float:
+        return self.delta0 + 2.0 * self.drop_radius * self.coefficient * we_sqrt
+
+    def we_sqrt(self, delta: float) -> float:
+        return (delta - self.delta0) / (2.0 * self.drop_radius * self.coefficient)
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """Solver settings (0 for cheb_points, n_edges or dt = the accuracy preset's value)."""
+
+    accuracy: str = "default"
+    cheb_points: int = 0
+    newton_tol: float = 1e-11
+    max_steps: int = 2000
+    n_edges: int = 0
+    dt: float = 0.0
+    t_max: float = 200.0
+    rest_kinetic: float = 1e-8
+    rest_time: float = 1.0
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated, immutable scene. ``data`` is the resolved input table (overrides applied)
+    from which the scene was built; it is what output files record."""
+
+    name: str
+    rod: Rod
+    drop: Drop
+    effects: Effects
+    numerics: Numerics
+    spreading: Spreading | None = None
+    experiment: units.Experiment | None = None
+    description: str = ""
+    data: dict = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def distance_from_end(self) -> float:
+        """The paper's x = L - center."""
+        return self.rod.length - self.drop.center
+
+    def to_json(self) -> str:
+        """Canonical JSON of the resolved input (sorted keys): what a result file records."""
+        return json.dumps(self.data, sort_keys=True, separators=(",", ":"))
+
+    def digest(self) -> str:
+        """SHA-256 of :meth:`to_json`: equal scenes, equal digests."""
+        return hashlib.sha256(self.to_json().encode()).hexdigest()
+
+    def with_overrides(self, overrides: dict[str, Any]) -> Scene:
+        """A new scene with dotted-key overrides applied and validated again."""
+        return build_scene(_apply_overrides(self.data, overrides), self.name)
+
+    def derived(self) -> dict[str, Any]:
+        """Derived quantities: wet interval, drop cap on the flat rod, length scales."""
+        from elastocap.drop import CapGeometry
+
+        d = self.drop
+        cap = CapGeometry.from_chord(d.area, d.wetted_length)
+        B, gam = self.rod.bending_modulus, d.line_tension
+        out: dict[str, Any] = {
+            "s1": d.s1,
+            "s2": d.s2,
+            "distance_from_end": self.distance_from_end,
+            "l_ec": math.sqrt(B / gam),
+            "L_over_l_ec": self.rod.length / math.sqrt(B / gam),
+            "area_over_l_ec2": d.area / (B / gam),
+            "flat_cap": cap.to_dict(),
+            "effects": list(self.effects.names()),
+        }
+        if self.effects.gravity > 0.0:
+            leg = (B / (self.rod.mass_per_length * self.effects.gravity)) ** (1.0 / 3.0)
+            out["l_eg"] = leg
+            out["L_over_l_eg"] = self.rod.length / leg
+            out["x_over_l_eg"] = self.distance_from_end / leg
+        if self.spreading is not None:
+            out["we_sqrt"] = self.spreading.we_sqrt(d.wetted_length)
+        if self.experiment is not None:
+            e = self.experiment
+            out["experiment"] = {
+                "l_ec_m": e.l_ec,
+                "l_eg_m": e.l_eg,
+                "l_gc_m": e.l_gc,
+                "weber": e.weber,
+                "we_sqrt": math.sqrt(e.weber),
+                "capillary_velocity_m_s": e.capillary_velocity,
+                "delta_m": e.wetted_length(),
+                "area_2d_m2": e.area_2d,
+            }
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        """Scene and derived quantities as plain data (``elastocap show --json``)."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "rod": vars(self.rod).copy(),
+            "drop": {
+                "area": self.drop.area,
+                "wetted_length": self.drop.wetted_length,
+                "line_tension": self.drop.line_tension,
+                "center": self.drop.center,
+                "events": [vars(ev).copy() for ev in self.drop.events],
+            },
+            "effects": vars(self.effects).copy(),
+            "spreading": None if self.spreading is None else vars(self.spreading).copy(),
+            "numerics": vars(self.numerics).copy(),
+            "derived": self.derived(),
+        }
+
+
+# ---------------------------------------------------------------------------------------------
+def _events(raw: Any, L: float) -> tuple[DropEvent, ...]:
+    if not isinstance(raw, list):
+        raise SceneError("drop.events", raw, "expected an array of tables [[drop.events]]")
+    out = []
+    for i, ev in enumerate(raw):
+        sec = _read_section(ev, f"drop.events[{i}]", EVENT_KEYS)
+        if sec["s1"] is None and sec["s2"] is None:
+            raise SceneError(f"drop.events[{i}]", ev, "an event needs a new 's1' and/or 's2'")
+        for k in ("s1", "s2"):
+            v = sec[k]
+            if v is not None and not (0.0 <= v <= L):
+                raise SceneError(
+                    f"drop.events[{i}].{k}", v, f"expected 0 <= {k} <= rod.length = {L}"
+                )
+        out.append(DropEvent(sec["time"], sec["s1"], sec["s2"]))
+    times = [e.time for e in out]
+    if times != sorted(times):
+        raise SceneError("drop.events", times, "events must be listed in increasing time")
+    return tuple(out)
+
+
+def build_scene(data: dict, name: str = "scene") -> Scene:
+    """Validate a raw scene table (as parsed from TOML) into a :class:`Scene`."""
+    if not isinstance(data, dict):
+        raise SceneError("scene", data, "expected a TOML table")
+    for k in data:
+        if k not in TOP_KEYS:
+            raise SceneError(
+                k,
+                data[k],
+                f"unknown section; allowed: {', '.join(sorted(TOP_KEYS))}." + _suggest(k, TOP_KEYS),
+            )
+    name = str(data.get("name", name))
+    description = str(data.get("description", ""))
+    experiment = None
+    spreading = None
+    raw_rod = data.get("rod")
+    raw_drop = data.get("drop")
+    raw_spr = data.get("spreading")
+    if "experiment" in data:
+        exp_sec = _read_section(data["experiment"], "experiment", EXPERIMENT_KEYS)
+        try:
+            experiment = units.Experiment(**exp_sec)
+            dim = experiment.dimensionless()
+        except ValueError as err:
+            raise SceneError("experiment", data["experiment"], str(err)) from None
+        if raw_rod is not None:
+            raise SceneError("rod", raw_rod, "give either [experiment] or [rod], not both")
+        if raw_spr is not None:
+            raise SceneError(
+                "spreading", raw_spr, "give either [experiment] or [spreading], not both"
+            )
+        drop_extra = dict(raw_drop or {})
+        for k in ("area", "wetted_length", "line_tension", "center", "distance_from_end"):
+            if k in drop_extra:
+                raise SceneError(
+                    f"drop.{k}", drop_extra[k], "set by [experiment]; change the experiment instead"
+                )
+        raw_rod = {"length": dim.length}
+        raw_drop = {
+            "area": dim.area,
+            "wetted_length": dim.wetted_length,
+            "line_tension": dim.line_tension,
+            "distance_from_end": dim.distance_from_end,
+            **drop_extra,
+        }
+        raw_spr = {"drop_radius": dim.drop_radius, "delta0": dim.delta0}
+        eff = dict(data.get("effects", {}))
+        if "gravity" in eff and eff["gravity"] != 1.0:
+            raise SceneError(
+                "effects.gravity", eff["gravity"], "an [experiment] scene uses units with g = 1"
+            )
+        eff["gravity"] = 1.0
+        data_effects = eff
+    else:
+        data_effects = data.get("effects", {})
+    if raw_rod is None:
+        raise SceneError("rod", None, "missing: a scene needs [rod] (or [experiment])")
+    if raw_drop is None:
+        raise SceneError("drop", None, "missing: a scene needs [drop] (or [experiment])")
+    rod = Rod(**_read_section(raw_rod, "rod", ROD_KEYS))
+    dsec = _read_section(raw_drop, "drop", DROP_KEYS)
+    L = rod.length
+    if dsec["center"] is not None and dsec["distance_from_end"] is not None:
+        raise SceneError(
+            "drop.center",
+            dsec["center"],
+            "give either drop.center or drop.distance_from_end, not both",
+        )
+    if dsec["distance_from_end"] is not None:
+        center = L - dsec["distance_from_end"]
+        pos_key, pos_val = "drop.distance_from_end", dsec["distance_from_end"]
+    elif dsec["center"] is not None:
+        center = dsec["center"]
+        pos_key, pos_val = "drop.center", center
+    else:
+        center = 0.5 * L
+        pos_key, pos_val = "drop.center", center
+    delta = dsec["wetted_length"]
+    if delta > L:
+        raise SceneError(
+            "drop.wetted_length", delta, f"expected 0 < wetted_length <= rod.length = {L}"
+        )
+    s1, s2 = center - 0.5 * delta, center + 0.5 * delta
+    # 1e-12 L: a wet interval that ends at the rod's end up to round-off is accepted
+    tol = 1e-12 * L
+    if s1 < -tol or s2 > L + tol:
+        raise SceneError(
+            pos_key,
+            pos_val,
+            f"the wet interval [S1, S2] = [{s1:.6g}, {s2:.6g}] must lie inside "
+            f"[0, rod.length = {L}]",
+        )
+    events = _events(raw_drop.get("events", []), L)
+    for i, ev in enumerate(events):
+        n1 = s1 if ev.s1 is None else ev.s1
+        n2 = s2 if ev.s2 is None else ev.s2
+        if not n1 < n2:
+            raise SceneError(
+                f"drop.events[{i}]", vars(ev), f"needs s1 < s2 after the event (s1={n1}, s2={n2})"
+            )
+        s1, s2 = n1, n2
+    drop = Drop(dsec["area"], delta, center, dsec["line_tension"], events)
+    effects = Effects(**_read_section(data_effects, "effects", EFFECTS_KEYS))
+    numerics = Numerics(**_read_section(data.get("numerics", {}), "numerics", NUMERICS_KEYS))
+    if raw_spr is not None:
+        spreading = Spreading(**_read_section(raw_spr, "spreading", SPREADING_KEYS))
+    return Scene(
+        name=name,
+        rod=rod,
+        drop=drop,
+        effects=effects,
+        numerics=numerics,
+        spreading=spreading,
+        experiment=experiment,
+        description=description,
+        data=data,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+def parse_override(text: str) -> tuple[str, Any]:
+    """Parse ``KEY=VALUE`` (VALUE as a TOML value; a bare word is taken as a string)."""
+    if "=" not in text:
+        raise SceneError("--set", text, "expected KEY=VALUE, e.g. drop.area=1.0")
+    key, _, val = text.partition("=")
+    key = key.strip()
+    val = val.strip()
+    try:
+        value = tomllib.loads(f"v = {val}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = val
+    return key, value
+
+
+def _apply_overrides(data: dict, overrides: dict[str, Any]) -> dict:
+    out = json.loads(json.dumps(data))  # a deep copy of plain TOML data
+    for key, value in overrides.items():
+        parts = key.split(".")
+        if len(parts) != 2 or not all(parts):
+            raise SceneError(key, value, "expected SECTION.KEY, e.g. drop.area")
+        sec, k = parts
+        if sec not in SECTIONS:
+            raise SceneError(
+                key,
+                value,
+                f"unknown section '{sec}'; allowed: {', '.join(SECTIONS)}."
+                + _suggest(sec, SECTIONS),
+            )
+        if k not in SECTIONS[sec] or k == "events":
+            raise SceneError(
+                key,
+                value,
+                f"unknown key; allowed keys in [{sec}]: {', '.join(SECTIONS[sec])}."
+                + _suggest(k, SECTIONS[sec]),
+            )
+        table = out.setdefault(sec, {})
+        # the drop's position is one choice of two: setting one replaces the other
+        if sec == "drop" and k in ("center", "distance_from_end"):
+            table.pop("center", None)
+            table.pop("distance_from_end", None)
+        table[k] = value
+    return out
+
+
+def builtin_scene_names() -> list[str]:
+    """Names of the scenes shipped inside the package."""
+    files = resources.files("elastocap") / "scenes"
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
+
+
+def _read_toml(text: str, origin: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError("scene", origin, f"not valid TOML: {err}") from None
+
+
+def load_scene(source: str | Path, overrides: dict[str, Any] | list[str] | None = None) -> Scene:
+    """Load a scene by built-in name or TOML path, apply ``--set`` overrides, validate.
+
+    Parameters
+    ----------
+    source : str or Path
+        A built-in name (see :func:`builtin_scene_names`) or a path to a TOML file.
+    overrides : dict or list of "KEY=VALUE", optional
+        Dotted-key overrides, validated like the file.
+    """
+    name = str(source)
+    builtin = builtin_scene_names()
+    if name in builtin:
+        text = (resources.files("elastocap") / "scenes" / f"{name}.toml").read_text()
+        data = _read_toml(text, name)
+    else:
+        path = Path(name)
+        if not path.is_file():
+            raise SceneError(
+                "scene",
+                name,
+                f"not a built-in scene ({', '.join(builtin)}) nor a TOML file."
+                + _suggest(name, builtin),
+            )
+        data = _read_toml(path.read_text(), name)
+        name = path.stem
+    if overrides:
+        if isinstance(overrides, list):
+            overrides = dict(parse_override(o) for o in overrides)
+        data = _apply_overrides(data, overrides)
+    return build_scene(data, name)

@@ -1,0 +1,148 @@
+"""Scenes: built-ins load, overrides validate, every kind of bad input gets a clear error."""
+
+import math
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from elastocap.scene import SceneError, build_scene, builtin_scene_names, load_scene, parse_override
+
+
+def test_builtins_load_with_paper_values():
+    assert {"supp-fig5", "fig3-strip", "fig3-experiment"} <= set(builtin_scene_names())
+    s = load_scene("supp-fig5")
+    assert (s.rod.length, s.drop.area, s.drop.wetted_length) == (4.6, 1.5, 2.5)
+    assert s.drop.center == pytest.approx(2.3)
+    assert s.effects.names() == ("damping",)
+    assert s.effects.damping == 1.04
+    f = load_scene("fig3-strip")
+    assert (f.rod.length, f.drop.area, f.drop.line_tension) == (14.3, 0.36, 40.0)
+    assert f.effects.names() == ("gravity", "ground")
+    assert f.distance_from_end == pytest.approx(2.0)
+    assert f.spreading.we_sqrt(f.spreading.delta(1.7)) == pytest.approx(1.7, rel=1e-14)
+
+
+def test_overrides_and_position_choice():
+    s = load_scene("supp-fig5", ["drop.wetted_length=4", "drop.area=1.0"])
+    assert s.drop.wetted_length == 4.0 and s.drop.area == 1.0
+    f = load_scene("fig3-strip", {"drop.center": 10.0})  # replaces distance_from_end
+    assert f.distance_from_end == pytest.approx(4.3)
+    assert load_scene("supp-fig5").digest() == load_scene("supp-fig5").digest()
+    assert load_scene("supp-fig5").digest() != s.digest()
+
+
+def _base():
+    return {"rod": {"length": 4.0}, "drop": {"area": 1.0, "wetted_length": 2.0}}
+
+
+@pytest.mark.parametrize(
+    ("patch", "key", "fragment"),
+    [
+        ({"rod": {"lenght": 4.0}}, "rod.lenght", "Did you mean 'length'?"),
+        ({"drop": {"area": 1.0}}, "drop.wetted_length", "missing"),
+        ({"rod": {"length": "long"}}, "rod.length", "expected a number"),
+        ({"rod": {"length": -4.0}}, "rod.length", "expected a number > 0"),
+        ({"rod": {"length": 0.0}}, "rod.length", "expected a number > 0"),
+        ({"drop": {"area": 0.0, "wetted_length": 2.0}}, "drop.area", "> 0"),
+        ({"drop": {"area": math.nan, "wetted_length": 2.0}}, "drop.area", "not NaN or inf"),
+        ({"drop": {"area": math.inf, "wetted_length": 2.0}}, "drop.area", "not NaN or inf"),
+        (
+            {"drop": {"area": 1.0, "wetted_length": 5.0}},
+            "drop.wetted_length",
+            "<= rod.length = 4.0",
+        ),
+        (
+            {"drop": {"area": 1.0, "wetted_length": 2.0, "center": 0.5}},
+            "drop.center",
+            "must lie inside [0, rod.length",
+        ),
+        (
+            {"drop": {"area": 1.0, "wetted_length": 2.0, "distance_from_end": 0.2}},
+            "drop.distance_from_end",
+            "must lie inside",
+        ),
+        (
+            {"drop": {"area": 1.0, "wetted_length": 2.0, "center": 2.0, "distance_from_end": 2.0}},
+            "drop.center",
+            "not both",
+        ),
+        ({"effects": {"ground": 1}}, "effects.ground", "true or false"),
+        ({"effects": {"gravity": -1.0}}, "effects.gravity", ">= 0"),
+        ({"effects": {"gravty": 1.0}}, "effects.gravty", "Did you mean 'gravity'?"),
+        ({"numerics": {"accuracy": "best"}}, "numerics.accuracy", "draft, default, publication"),
+        ({"numerics": {"n_edges": 10.5}}, "numerics.n_edges", "whole number"),
+        ({"dorp": {}}, "dorp", "Did you mean 'drop'?"),
+        (
+            {"drop": {"area": 1.0, "wetted_length": 2.0, "events": [{"time": 1.0}]}},
+            "drop.events[0]",
+            "needs a new 's1' and/or 's2'",
+        ),
+        (
+            {"drop": {"area": 1.0, "wetted_length": 2.0, "events": [{"time": 1.0, "s2": 9.0}]}},
+            "drop.events[0].s2",
+            "<= rod.length",
+        ),
+        (
+            {"drop": {"area": 1.0, "wetted_length": 2.0, "events": [{"time": 1.0, "s2": 0.5}]}},
+            "drop.events[0]",
+            "s1 < s2",
+        ),
+    ],
+)
+def test_bad_input_names_key_value_and_allowed(patch, key, fragment):
+    data = _base()
+    for sec, vals in patch.items():
+        if sec in data and isinstance(vals, dict) and sec != "drop":
+            data[sec] = {**vals}
+        else:
+            data[sec] = vals
+    with pytest.raises(SceneError) as info:
+        build_scene(data)
+    assert info.value.key == key
+    assert fragment in str(info.value)
+    assert str(info.value).startswith(f"{key}: got ")
+
+
+def test_bad_overrides():
+    with pytest.raises(SceneError, match="expected KEY=VALUE"):
+        load_scene("supp-fig5", ["drop.area"])
+    with pytest.raises(SceneError, match=r"drop.aera: got 1; unknown key.*Did you mean 'area'"):
+        load_scene("supp-fig5", ["drop.aera=1"])
+    with pytest.raises(SceneError, match="expected SECTION.KEY"):
+        load_scene("supp-fig5", ["area=1"])
+    with pytest.raises(SceneError, match=r"not a built-in scene .* Did you mean 'supp-fig5'"):
+        load_scene("supp-fig6")
+    assert parse_override("effects.ground=true") == ("effects.ground", True)
+    assert parse_override("numerics.accuracy=draft") == ("numerics.accuracy", "draft")
+
+
+def test_bad_toml_file(tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text("[rod\nlength = 1")
+    with pytest.raises(SceneError, match="not valid TOML"):
+        load_scene(p)
+
+
+def test_experiment_section_excludes_rod():
+    with pytest.raises(SceneError, match="either \\[experiment\\] or \\[rod\\]"):
+        load_scene("fig3-experiment", {"rod.length": 3.0})
+    with pytest.raises(SceneError, match="experiment: got .*covers 1.2 mm to 1.85 mm"):
+        load_scene("fig3-experiment", {"experiment.drop_radius": 3e-3})
+
+
+@given(
+    length=st.floats(allow_nan=True, allow_infinity=True),
+    area=st.floats(allow_nan=True, allow_infinity=True),
+    delta=st.floats(allow_nan=True, allow_infinity=True),
+)
+def test_fuzzed_scenes_either_valid_or_clear_error(length, area, delta):
+    data = {"rod": {"length": length}, "drop": {"area": area, "wetted_length": delta}}
+    try:
+        s = build_scene(data)
+    except SceneError as err:
+        assert err.key.split(".")[0] in ("rod", "drop")
+        assert "got" in str(err)
+    else:
+        assert 0 < s.drop.wetted_length <= s.rod.length
+        assert all(math.isfinite(v) for v in (s.rod.length, s.drop.area, s.drop.s1, s.drop.s2))
