@@ -205,7 +205,7 @@ class Branch:
 
     @classmethod
     def load(cls, path) -> Branch:
-        """Read a branch written by :meth:`save`; refuses incomplete files by naming what is missing."""
+        """Read a branch written by :meth:`save`; refuses incomplete files, naming the gaps."""
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_suffix(".npz")
@@ -268,7 +268,7 @@ class Branch:
         yv = self._yvalues(y)
         st = self.stability
         unstable = st > 0
-        color = color or ax._get_lines.get_next_color()
+        color = color or f"C{len(ax.lines) % 10}"
         # Split into runs of equal stability; adjacent runs share an end point
         # so the curve has no gaps.
         start = 0

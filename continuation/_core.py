@@ -121,6 +121,12 @@ class _Core:
                 tnew = self.normalize(fac.solve(e))
                 row = self.wrow(tnew)
             x = x + dx
+            # Step criterion: when rounding keeps max|F| above an absolute
+            # newton_tol (large states, stiff operators), an update below
+            # newton_tol relative to the state means Newton has converged as
+            # far as floating point allows.
+            if float(np.max(np.abs(dx))) <= tol * (1.0 + float(np.max(np.abs(x)))):
+                return _Corrected(x, it + 1, fac, True, "", normF)
         raise AssertionError("unreachable")
 
     def tangent_from(self, fac, t_ref=None):
@@ -140,19 +146,44 @@ class _Core:
             stab = inertia_negative(ev.hessian(u, p), C)
         return obs, stab
 
-    def bp_test(self, x, row):
+    def bp_test(self, x, row, b, c):
         """Bordered test function for branch points and the kernel vectors.
 
-        ``psi = 1 / (c . A^{-1} b)`` with ``A = [[J, F_p], [row]]``: smooth, and
-        zero exactly where ``A`` is singular (Govaerts 2000, sec. 3.4).
+        Solves ``[[A, b], [c^T, 0]] [phi; tau] = [0; 1]`` with
+        ``A = [[J, F_p], [row]]``: ``tau`` is smooth, vanishes exactly where
+        ``A`` is singular, and there ``phi`` spans the kernel of ``A``
+        (Govaerts 2000, sec. 3.4); well defined at the branch point itself,
+        unlike ``det A``. ``b, c`` must approximate the left and right kernel
+        vectors (see :meth:`kernel_guess`): with arbitrary borders ``tau`` has
+        poles near the zero.
+
+        Returns ``(tau, phi, psi)`` with ``psi`` the left kernel vector
+        (transpose system), or ``(nan, None, None)`` if the bordered matrix is
+        singular.
         """
         A = self.bmatrix(x, row)
-        fac = factorize(A)
+        M = bordered(A, b, c, 0.0)
+        fac = factorize(M)
         if fac is None:
-            return 0.0, None, None
-        y = fac.solve(self.bb)
-        d = float(self.bc @ y)
-        return (1.0 / d if d != 0 else math.inf), y, fac
+            return math.nan, None, None
+        e = np.zeros(self.n + 2)
+        e[-1] = 1.0
+        y = fac.solve(e)
+        z = fac.solve(e, trans=True)
+        return float(y[-1]), y[:-1], z[:-1]
+
+    def kernel_guess(self, x, row):
+        """Right and left near-kernel vectors of ``A`` by two inverse iterations."""
+        fac = factorize(self.bmatrix(x, row))
+        if fac is None:
+            return None
+        r, l_ = self.bb.copy(), self.bc.copy()
+        for _ in range(2):
+            r = fac.solve(r)
+            r /= np.linalg.norm(r)
+            l_ = fac.solve(l_, trans=True)
+            l_ /= np.linalg.norm(l_)
+        return l_, r
 
 
 # ================================================================== fold location
@@ -189,7 +220,7 @@ def _fold_gradient(ev, u, p, v, w, q_family=None):
     return gu, gp
 
 
-def _locate_fold(ev, u, p, v0, tol, max_iter=25):
+def _locate_fold(ev, u, p, v0, tol, max_iter=25, ftol=1e-10):
     """Newton on the minimally augmented system ``F = 0, g = 0``.
 
     Returns ``(u, p, v, converged, precision, iterations, message)``.
@@ -226,6 +257,12 @@ def _locate_fold(ev, u, p, v0, tol, max_iter=25):
         p = p + dx[n]
         prec = abs(dx[n])
         if np.max(np.abs(dx)) <= tol * (1.0 + max(np.max(np.abs(u)), abs(p))):
+            return u, p, v / np.linalg.norm(v), True, prec, it, ""
+        # With finite-difference Jacobians the u-update stalls at rounding
+        # noise while p has converged: accept once F is at the Newton
+        # tolerance and p no longer moves.
+        if (it >= 3 and float(np.max(np.abs(F))) <= ftol
+                and prec <= tol * (1.0 + abs(p))):
             return u, p, v / np.linalg.norm(v), True, prec, it, ""
     return u, p, c, False, prec, max_iter, (
         f"fold Newton did not converge in {max_iter} iterations (last |dp|={prec:.1e})")
@@ -344,6 +381,7 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
     ds = s.ds0
     cos_turn = math.cos(s.max_turn)
     mp = s.corrector == "moore-penrose"
+    hook = getattr(core.ev.problem, "_on_accept", None)
     for step in range(1, s.max_steps + 1):
         # ---- predictor-corrector with step rejection
         last_reason = ""
@@ -369,16 +407,21 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
             if res.ok:
                 break
             last_reason = res.reason
-            if res.reason == "non-finite residual" and ds <= s.ds_min:
-                run.status = B.NON_FINITE
             ds *= s.step_shrink
             if ds < s.ds_min:
-                if run.status != B.NON_FINITE:
+                if last_reason == "non-finite residual":
+                    run.status = B.NON_FINITE
+                    run.message = (
+                        f"step {step}: the residual is NaN/inf just beyond p={x[n]:.12g} even "
+                        f"at ds_min={s.ds_min:.1e}: the problem leaves its domain there. Try "
+                        "p_min/p_max to stop before it, or check the residual for overflow.")
+                else:
                     run.status = B.STEP_TOO_SMALL
-                run.message = (
-                    f"step {step}: corrector failed at ds_min={s.ds_min:.1e} near p="
-                    f"{x[n]:.10g} ({last_reason}). Try a smaller ds_min, a larger max_newton, "
-                    "a looser newton_tol, or check the Jacobian (check_jacobian=True).")
+                    run.message = (
+                        f"step {step}: corrector failed at ds_min={s.ds_min:.1e} near p="
+                        f"{x[n]:.12g} ({last_reason}). Try a smaller ds_min, a larger "
+                        "max_newton, a looser newton_tol, or check the Jacobian "
+                        "(check_jacobian=True).")
                 return run
         x_new = res.x
         det_new = fac.det_sign()
@@ -406,6 +449,8 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
             det_new = fb.det_sign() if fb is not None else det_new
         run.add(x_new, t_new, ds, res.iters, det_new)
         k = len(run.p) - 1
+        if hook is not None:  # e.g. FoldProblem refreshes its borders
+            hook(x_new[:n], x_new[n])
         _detect(core, run, k, skip_first=(skip_first and k == 1))
         stop = None
         for sp_ in run.sps:
@@ -496,13 +541,16 @@ def _detect(core, run, k, skip_first=False):
     n = core.n
     ta, tb = run.t[k - 1], run.t[k]
     # ---- folds: dp/ds changes sign
-    if s.detect_folds and not skip_first and ta[n] * tb[n] < 0:
+    # A sign change of dp/ds at rounding level (both |dp/ds| < 1e-13, e.g. on
+    # an asymptote p -> 0) is noise, not a fold.
+    if (s.detect_folds and not skip_first and ta[n] * tb[n] < 0
+            and max(abs(ta[n]), abs(tb[n])) > 1e-13):
         j = k - 1 if abs(ta[n]) < abs(tb[n]) else k
         sp = SpecialPoint("fold", k, run.p[j], run.u[j].copy(),
                           abs(run.p[k] - run.p[k - 1]), False, "", {})
         if s.locate:
             uf, pf, kern, ok, prec, its, msg = _locate_fold(
-                core.ev, run.u[j], run.p[j], run.t[j], s.locate_tol)
+                core.ev, run.u[j], run.p[j], run.t[j], s.locate_tol, ftol=s.newton_tol)
             # A located fold must lie near the bracket; else keep the bracket.
             span = abs(run.p[k] - run.p[k - 1]) + 1e-12 * (1 + abs(run.p[k]))
             if ok and abs(pf - run.p[j]) <= 10 * span:
@@ -522,21 +570,36 @@ def _detect(core, run, k, skip_first=False):
             row = core.wrow(ta)
             xa = np.concatenate([run.u[k - 1], [run.p[k - 1]]])
             xb = np.concatenate([run.u[k], [run.p[k]]])
-            fa = core.bp_test(xa, row)[0]
-            fb = core.bp_test(xb, row)[0]
-            xr, prec = _bisect_on_arc(core, run, k, lambda x: core.bp_test(x, row)[0], fa, fb)
-            if xr is not None:
-                psi, y, fac = core.bp_test(xr, row)
+            guess = core.kernel_guess(xb, row)
+            xr = None
+            if guess is not None:
+                bl, cr = guess
+
+                def tau(x):
+                    return core.bp_test(x, row, bl, cr)[0]
+
+                fa, fb = tau(xa), tau(xb)
+                if fa * fb < 0:
+                    xr, prec = _bisect_on_arc(core, run, k, tau, fa, fb)
+            if xr is None:
+                # Fallback: bisection on the sign of det A (always brackets).
+                def dets(x):
+                    f = factorize(core.bmatrix(x, row))
+                    return 0.0 if f is None else float(f.det_sign())
+
+                xr, prec = _bisect_on_arc(core, run, k, dets, float(run.det[k - 1]),
+                                          float(run.det[k]))
+                guess = core.kernel_guess(xr, row) if xr is not None else None
+            if xr is not None and guess is not None:
+                tval, phi, psi = core.bp_test(xr, row, guess[0], guess[1])
                 sp.p, sp.u, sp.precision, sp.located = float(xr[n]), xr[:n].copy(), prec, True
-                if fac is not None:
-                    phi = core.normalize(y)
-                    left = fac.solve(core.bc, trans=True)[:n]
-                    sp.data["kernel"] = phi
-                    sp.data["left_kernel"] = left / np.linalg.norm(left)
-                sp.data["test_function"] = psi
-                # Tangent of the computed branch, interpolated to the point.
-                tm = ta + tb
-                sp.data["tangent"] = core.normalize(tm)
+                if phi is not None:
+                    sp.data["kernel"] = core.normalize(phi)
+                    sp.data["left_kernel"] = psi[:n] / np.linalg.norm(psi[:n])
+                sp.data["test_function"] = tval
+                # The branch's own tangent at the point (bisected between the
+                # bracketing tangents, which are close: the branch is smooth).
+                sp.data["tangent"] = core.normalize(ta + tb)
         if "tangent" not in sp.data:
             sp.data["tangent"] = tb.copy()
         run.sps.append(sp)
@@ -586,9 +649,10 @@ def _assemble(core, runs, problem, settings, extra_meta, parameter="p") -> Branc
     p, u, t, ds, it, st, obs = [], [], [], [], [], [], []
     sps = []
     offset = 0
-    for run, rev in parts:
+    for j, (run, rev) in enumerate(parts):
         m = len(run.p)
-        idx = list(range(m - 1, -1, -1)) if rev else (range(1, m) if offset else range(m))
+        # The second part starts at the shared start point: skip its copy.
+        idx = list(range(m - 1, -1, -1)) if rev else (range(1, m) if j else range(m))
         for i in idx:
             p.append(run.p[i])
             u.append(run.u[i])
@@ -603,7 +667,7 @@ def _assemble(core, runs, problem, settings, extra_meta, parameter="p") -> Branc
             else:
                 sp.index = sp.index + offset
             sps.append(sp)
-        offset += (m - 1) if not rev else (m - 1)
+        offset += m - 1
     sps.sort(key=lambda sp: sp.index)
     m = len(p)
     names = sorted({k for o in obs for k in o})
@@ -772,7 +836,8 @@ def continue_branch(
         dirs = [settings.direction] if settings.direction != 0 else [-1, 1]
         for d in dirs:
             tt = t0 if d == 1 else -t0
-            runs.append(_run_direction(core, x0, tt, det0, events, set(stop_on), callback,
+            # det[[J, F_p], [t^T]] is linear in t: reversing t flips its sign.
+            runs.append(_run_direction(core, x0, tt, det0 * d, events, set(stop_on), callback,
                                        skip_first=(det0 == 0)))
     br = _assemble(core, runs, problem, settings, {"p0": p0})
     br.metadata["wall_time_s"] = time.perf_counter() - t_start
@@ -785,6 +850,7 @@ def switch_branch(
     settings: ContinuationSettings | None = None,
     *,
     ds: float | None = None,
+    both_sides: bool = True,
     events=None,
     stop_on=(),
     callback=None,
@@ -808,9 +874,12 @@ def switch_branch(
     point : SpecialPoint
         A located branch point from :func:`continue_branch`.
     settings : ContinuationSettings, optional
-        ``direction`` is ignored: both sides are computed (0) unless it is +-1.
+        ``direction`` is not used; see ``both_sides``.
     ds : float, optional
         First step off the branch point; default ``settings.ds0``.
+    both_sides : bool
+        Continue both halves of the new branch (default) or only the one
+        along ``+t2`` (oriented so that p increases when it can).
     events, stop_on, callback
         As in :func:`continue_branch`.
 
@@ -854,7 +923,9 @@ def switch_branch(
     t2 = core.normalize(a * t1 + phi)
     events = _normalize_events(events)
     runs = []
-    dirs = [settings.direction] if settings.direction != 0 else [-1, 1]
+    if t2[n] < 0:
+        t2 = -t2
+    dirs = [-1, 1] if both_sides else [1]
     with np.errstate(all="ignore"):
         for d in dirs:
             tt = t2 if d == 1 else -t2

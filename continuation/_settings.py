@@ -63,7 +63,7 @@ class ContinuationSettings:
         special points and endpoints).
     check_jacobian : bool
         Compare the supplied derivatives with finite differences at the start
-        (``2 * 3 + 2`` residual evaluations) and raise a clear error if wrong.
+        (16 residual evaluations) and raise a clear error if wrong.
     """
 
     ds0: float = 0.01

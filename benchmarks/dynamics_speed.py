@@ -1,0 +1,326 @@
+"""Speed of the `dynamics` stepper (not a test).
+
+Prints medians and ratios for:
+
+1. the generated bending-only stepper vs a bare hand-written RATTLE loop (same kernels,
+   no effect machinery, no diagnostics): the cost of specialisation (target < 10%);
+   and the share of the bending kernel itself;
+2. the added cost of each effect, alone with bending;
+3. node-updates per second and the paper's scenes (supp-fig5, strip);
+4. Python-per-step driving vs the compiled loop (the per-step overhead avoided);
+5. Newton/tridiagonal SHAKE vs Gauss-Seidel SHAKE (iterations and time);
+6. compile time with a cold cache vs a warm cache (fresh processes);
+7. with ``--dt-bound``: the explicit stability constant C by bisection.
+
+Usage: ``python benchmarks/dynamics_speed.py [--fast] [--dt-bound]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numba
+import numpy as np
+
+import dynamics
+from dynamics import (
+    Clamp,
+    Damping,
+    DistributedLoad,
+    Gravity,
+    Ground,
+    PointLoad,
+    Rod,
+    simulate,
+)
+from dynamics.bending import bending_force_add
+from dynamics.constraints import shake, velocity_projection
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests", "dynamics"))
+from dyn_ext_kernels import AnchorSpring  # noqa: E402
+
+
+def wavy_rod(n, L=4.6, amp=0.8):
+    h = L / n
+    s = (np.arange(n) + 0.5) * h
+    th = amp * np.sin(2 * np.pi * s / L)
+    x = np.zeros((n + 1, 2))
+    x[1:, 0] = np.cumsum(h * np.cos(th))
+    x[1:, 1] = np.cumsum(h * np.sin(th))
+    return Rod(x, np.zeros_like(x), np.full(n, h))
+
+
+@numba.njit(cache=True)
+def bare_rattle(x, v, dt, n_steps, edge_len, winv, B, F, xn, vh, cp, dp, ex, ez):
+    """The same RATTLE step as the generated stepper, bending only, written by hand."""
+    n = x.shape[0]
+    half = 0.5 * dt
+    F[:, :] = 0.0
+    bending_force_add(x, edge_len, B, F)
+    for _ in range(n_steps):
+        for i in range(n):
+            for k in range(2):
+                vh[i, k] = v[i, k] + half * winv[i, k] * F[i, k]
+                xn[i, k] = x[i, k] + dt * vh[i, k]
+        shake(x, xn, winv, edge_len, cp, dp, ex, ez)
+        for i in range(n):
+            for k in range(2):
+                vh[i, k] = (xn[i, k] - x[i, k]) / dt
+                x[i, k] = xn[i, k]
+                F[i, k] = 0.0
+        bending_force_add(x, edge_len, B, F)
+        for i in range(n):
+            for k in range(2):
+                v[i, k] = vh[i, k] + half * winv[i, k] * F[i, k]
+        velocity_projection(x, v, winv, cp, dp, ex, ez)
+
+
+@numba.njit(cache=True)
+def bending_loop(x, edge_len, B, F, n_steps):
+    E = 0.0
+    for _ in range(n_steps):
+        F[:, :] = 0.0
+        E += bending_force_add(x, edge_len, B, F)
+    return E
+
+
+@numba.njit(cache=True)
+def gauss_seidel_shake(x_old, x_new, winv, edge_len, tol, max_sweeps):
+    """Classical SHAKE (Ryckaert et al. 1977): one constraint at a time, sweeps."""
+    m = edge_len.shape[0]
+    for sweep in range(max_sweeps):
+        err = 0.0
+        for i in range(m):
+            rx = x_new[i + 1, 0] - x_new[i, 0]
+            rz = x_new[i + 1, 1] - x_new[i, 1]
+            li2 = edge_len[i] * edge_len[i]
+            phi = rx * rx + rz * rz - li2
+            e = abs(phi) / (2 * li2)
+            if e > err:
+                err = e
+            dx = x_old[i + 1, 0] - x_old[i, 0]
+            dz = x_old[i + 1, 1] - x_old[i, 1]
+            w = winv[i, 0] + winv[i + 1, 0]
+            g = phi / (2.0 * w * (rx * dx + rz * dz))
+            x_new[i, 0] += winv[i, 0] * g * dx
+            x_new[i, 1] += winv[i, 1] * g * dz
+            x_new[i + 1, 0] -= winv[i + 1, 0] * g * dx
+            x_new[i + 1, 1] -= winv[i + 1, 1] * g * dz
+        if err < tol:
+            return sweep
+    return -1
+
+
+def median_time(fn, repeat=5):
+    ts = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts))
+
+
+def section(title):
+    print(f"\n== {title}")
+
+
+def bench_overhead(n=200, steps=20000, repeat=5):
+    section(f"1. generated bending-only stepper vs bare RATTLE loop ({n} edges, {steps} steps)")
+    rod = wavy_rod(n)
+    dt = dynamics.stable_dt(rod.edge_len, 1, 1)
+    m = rod.mass
+    winv = np.repeat((1 / m)[:, None], 2, axis=1).copy()
+
+    def bare():
+        x, v = rod.x.copy(), rod.v.copy()
+        w = [np.zeros_like(x) for _ in range(3)] + [np.zeros(n) for _ in range(4)]
+        bare_rattle(x, v, dt, steps, rod.edge_len, winv, 1.0, *w)
+
+    def gen():
+        r = simulate(rod, (), dt=dt, t_end=steps * dt, frames=2)
+        return r.wall_time
+
+    def kern():
+        bending_loop(rod.x, rod.edge_len, 1.0, np.zeros_like(rod.x), steps)
+
+    bare(), gen(), kern()
+    tb = median_time(bare, repeat)
+    tg = float(np.median([gen() for _ in range(repeat)]))
+    tk = median_time(kern, repeat)
+    print(f"bare RATTLE loop      {tb / steps * 1e6:8.2f} us/step")
+    print(f"generated stepper     {tg / steps * 1e6:8.2f} us/step   ratio {tg / tb:.3f}")
+    print(f"bending kernel alone  {tk / steps * 1e6:8.2f} us/step   share {tk / tb:.2f}")
+    return tg / steps
+
+
+def bench_effects(n=200, steps=20000, repeat=5):
+    section(f"2. added cost of each effect ({n} edges, {steps} steps, median of {repeat})")
+    rod = wavy_rod(n)
+    rod.x[:, 1] += 1.0  # above the ground
+    dt = dynamics.stable_dt(rod.edge_len, 1, 1)
+    cases = {
+        "bending only": lambda: (),
+        "gravity": lambda: (Gravity(1e-3),),
+        "ground": lambda: (Ground(),),
+        "damping": lambda: (Damping(0.1),),
+        "point load": lambda: (PointLoad(-1, (0.0, 1e-3)),),
+        "distributed load": lambda: (DistributedLoad((0.0, 1e-3)),),
+        "clamp": lambda: (Clamp(0, tuple(rod.x[0]), angle=0.0),),
+        "external spring": lambda: (AnchorSpring(0, 1.0, tuple(rod.x[0])),),
+        "all of the above": lambda: (Gravity(1e-3), Ground(), Damping(0.1),
+                                     PointLoad(-1, (0, 1e-3)), DistributedLoad((0, 1e-3)),
+                                     Clamp(0, tuple(rod.x[0]), angle=0.0)),
+    }
+    base = None
+    for name, make in cases.items():
+        simulate(rod, make(), dt=dt, t_end=10 * dt, frames=2)  # compile / load
+        t = float(np.median([simulate(rod, make(), dt=dt, t_end=steps * dt, frames=2)
+                             .wall_time for _ in range(repeat)])) / steps
+        base = base or t
+        print(f"{name:18s} {t * 1e6:8.2f} us/step  +{(t / base - 1) * 100:6.1f}%  "
+              f"{(n + 1) / t / 1e6:6.1f} M node-updates/s")
+
+
+def bench_scenes():
+    section("3. scenes (after compile)")
+    for n, t_end in ((100, 10.0), (100, 50.0), (200, 10.0), (200, 50.0)):
+        rod = wavy_rod(n)
+        dt = dynamics.stable_dt(rod.edge_len, 1, 1)
+        r = simulate(rod, (), dt=dt, t_end=t_end, frames=101)
+        print(f"supp-fig5 free rod L=4.6 N={n:3d} t_end={t_end:4.0f} dt={dt:.2e}: "
+              f"{r.steps:7d} steps {r.wall_time:6.3f} s  "
+              f"({(n + 1) * r.steps / r.wall_time / 1e6:.1f} M node-updates/s)")
+    for n in (100, 150):
+        rod = Rod.straight(n, 14.3, angle=0.3, origin=(0.0, 0.2))
+        dt = dynamics.stable_dt(rod.edge_len, 1, 1)
+        r = simulate(rod, (Gravity(1.0), Ground(), Damping(0.05)), dt=dt, t_end=20.0,
+                     frames=101)
+        print(f"strip L=14.3 gravity+ground+damping N={n} t_end=20 dt={dt:.2e}: "
+              f"{r.steps:7d} steps {r.wall_time:6.3f} s  status {r.status}")
+
+
+def bench_python_loop(n=100, steps=2000):
+    section(f"4. Python call per step vs compiled loop ({n} edges)")
+    rod = wavy_rod(n)
+    dt = dynamics.stable_dt(rod.edge_len, 1, 1)
+    mod = dynamics.compile_stepper(())
+    x, v = rod.x.copy(), rod.v.copy()
+    m = rod.mass
+    winv0 = np.repeat((1 / m)[:, None], 2, axis=1).copy()
+    wn, we = np.zeros((7, n + 1, 2)), np.zeros((4, n))
+    energy, diag, rest = np.zeros(1), np.zeros(8), np.zeros(3)
+    args = (rod.edge_len, m, winv0, 1.0, wn, we, energy, diag, rest)
+    mod.run(x, v, 0.0, dt, 1, *args)
+
+    def per_step():
+        for k in range(steps):
+            mod.run(x, v, k * dt, dt, 1, *args)
+
+    def chunk():
+        mod.run(x, v, 0.0, dt, steps, *args)
+
+    tp, tc = median_time(per_step), median_time(chunk)
+    print(f"one Python call per step {tp / steps * 1e6:7.2f} us/step")
+    print(f"compiled loop            {tc / steps * 1e6:7.2f} us/step   "
+          f"overhead avoided {(tp - tc) / steps * 1e6:.2f} us/step ({tp / tc:.2f}x)")
+
+
+def bench_shake(repeat=5):
+    section("5. SHAKE: Newton + tridiagonal vs Gauss-Seidel sweeps (to 1e-13)")
+    rng = np.random.default_rng(1)
+    for n in (50, 100, 200):
+        rod = wavy_rod(n)
+        dt = dynamics.stable_dt(rod.edge_len, 1, 1)
+        # a typical predictor: random velocities of order 1, one step
+        vel = rng.standard_normal((n + 1, 2))
+        xs = rod.x + dt * vel
+        winv = np.repeat((1 / rod.mass)[:, None], 2, axis=1).copy()
+        w = [np.zeros(n) for _ in range(4)]
+        xn = xs.copy()
+        _, it, _, _ = shake(rod.x, xn, winv, rod.edge_len, *w)
+        xg = xs.copy()
+        sw = gauss_seidel_shake(rod.x, xg, winv, rod.edge_len, 1e-13, 100000)
+        tn = median_time(lambda: shake(rod.x, xs.copy(), winv, rod.edge_len, *w), repeat)
+        tg = median_time(lambda: gauss_seidel_shake(rod.x, xs.copy(), winv, rod.edge_len,
+                                                    1e-13, 100000), repeat)
+        print(f"N={n:3d}: Newton {it} iterations {tn * 1e6:7.1f} us | Gauss-Seidel {sw:5d} "
+              f"sweeps {tg * 1e6:8.1f} us | ratio {tg / tn:6.1f}x")
+
+
+COMPILE_SNIPPET = """
+import time, numpy as np
+t = time.perf_counter()
+import dynamics
+ti = time.perf_counter() - t
+rod = dynamics.Rod.straight(50, 4.6)
+r = dynamics.simulate(rod, ({effects}), dt=1e-3, t_end=0.01, frames=2)
+print(ti, r.compile_time, time.perf_counter() - t)
+"""
+
+
+def bench_compile():
+    section("6. compile time, fresh processes (import, stepper compile/load, total)")
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, DYNAMICS_CACHE_DIR=tmp, NUMBA_CACHE_DIR=tmp)
+        for label, eff in (("bending only", ""),
+                           ("gravity+ground+damping", "dynamics.Gravity(), dynamics.Ground(),"
+                                                      " dynamics.Damping(0.1),")):
+            for temp in ("cold", "warm"):
+                out = subprocess.run([sys.executable, "-c",
+                                      COMPILE_SNIPPET.format(effects=eff)], env=env,
+                                     capture_output=True, text=True, check=True).stdout
+                ti, tcomp, tt = map(float, out.split())
+                print(f"{label:24s} {temp} cache: import {ti:5.2f} s  stepper {tcomp:5.2f} s"
+                      f"  total {tt:5.2f} s")
+
+
+def measure_dt_bound():
+    section("7. explicit stability constant C (dt_max = C h^2 sqrt(mu/B)) by bisection")
+    for n in (25, 100, 200, 400):
+        L = 4.6
+        h = L / n
+        rng = np.random.default_rng(0)
+        th = np.cumsum(1e-3 * rng.standard_normal(n))
+        x = np.zeros((n + 1, 2))
+        x[1:, 0] = np.cumsum(h * np.cos(th))
+        x[1:, 1] = np.cumsum(h * np.sin(th))
+        rod = Rod(x, np.zeros_like(x), np.full(n, h))
+        lo, hi = 0.2, 0.8
+        for _ in range(14):
+            mid = 0.5 * (lo + hi)
+            dt = mid * h * h
+            r = simulate(rod, (), dt=dt, t_end=30000 * dt, frames=2, check_dt=False)
+            E = r.energies["total"]
+            bad = (not r.success) or not np.isfinite(E[-1]) or E[-1] > 2 * E[0]
+            lo, hi = (lo, mid) if bad else (mid, hi)
+        print(f"N={n:3d}: C in [{lo:.4f}, {hi:.4f}]  (DT_BOUND_C = {dynamics.DT_BOUND_C})")
+
+
+def main(fast=False, dt_bound=False):
+    steps = 4000 if fast else 20000
+    repeat = 3 if fast else 5
+    print(f"numba {numba.__version__}, numpy {np.__version__}, threads "
+          f"{numba.config.NUMBA_NUM_THREADS}")
+    bench_overhead(steps=steps, repeat=repeat)
+    bench_effects(steps=steps, repeat=repeat)
+    if not fast:
+        bench_scenes()
+    bench_python_loop()
+    bench_shake(repeat=repeat)
+    if not fast:
+        bench_compile()
+    if dt_bound:
+        measure_dt_bound()
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--fast", action="store_true")
+    ap.add_argument("--dt-bound", action="store_true")
+    a = ap.parse_args()
+    main(fast=a.fast, dt_bound=a.dt_bound)

@@ -1,0 +1,174 @@
+"""Two-parameter continuation of folds (minimally augmented system).
+
+The second parameter ``q`` enters through a *problem family*: a callable
+``family(q) -> Problem`` whose problems are continued in ``p``. This needs no
+extra methods on the problem (elastocap builds its problem with ``p`` and
+``q`` chosen by name), and ``dF/dq`` is taken by central differences in
+``q``; that only affects Newton's convergence rate, not the computed fold
+curve, which solves ``F = 0, g = 0`` to the Newton tolerance at each ``q``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from collections.abc import Callable
+
+import numpy as np
+
+from ._branch import Branch, SpecialPoint
+from ._core import _fold_gradient, _fold_system, continue_branch
+from ._linalg import bordered
+from ._problem import Evaluator, Problem, check_jacobian
+from ._settings import ContinuationSettings
+
+# Central-difference step in q, relative: eps**(1/3) (truncation vs rounding).
+_FDQ = np.finfo(float).eps ** (1.0 / 3.0)
+
+
+class FoldProblem(Problem):
+    """The minimally augmented fold system as a one-parameter problem in ``q``.
+
+    Unknowns ``U = (u, p)`` (size n + 1); residual ``G(U, q) = (F(u, p; q),
+    g(u, p; q))`` with ``g`` from the bordered system ``[[J, b], [c^T, 0]]
+    [v; g] = [0; 1]`` (Govaerts 2000, sec. 4.2). The borders ``b, c`` are
+    refreshed to the current left/right null vectors after every accepted
+    step (as BifurcationKit does), keeping the bordered matrix well
+    conditioned along the whole curve.
+
+    Parameters
+    ----------
+    family : callable ``q -> Problem``
+    b, c : ndarray, shape (n,)
+        Initial left and right null-vector approximations.
+    """
+
+    def __init__(self, family: Callable, b, c, name="fold curve"):
+        self.family = family
+        self.b = np.asarray(b, dtype=float) / np.linalg.norm(b)
+        self.c = np.asarray(c, dtype=float) / np.linalg.norm(c)
+        self.n = self.b.size
+        self.name = name
+        self._cache: OrderedDict = OrderedDict()
+
+    def _ev(self, q) -> Evaluator:
+        q = float(q)
+        ev = self._cache.get(q)
+        if ev is None:
+            ev = Evaluator(self.family(q))
+            self._cache[q] = ev
+            # The driver needs q, q +- h and a few trial values at a time.
+            while len(self._cache) > 8:
+                self._cache.popitem(last=False)
+        return ev
+
+    def _split(self, U):
+        return U[: self.n], float(U[self.n])
+
+    def residual(self, U, q):
+        u, p = self._split(U)
+        ev = self._ev(q)
+        r = _fold_system(ev, u, p, self.b, self.c)
+        g = r[0] if r is not None else math.nan
+        return np.concatenate([ev.F(u, p), [g]])
+
+    def jacobian(self, U, q):
+        u, p = self._split(U)
+        ev = self._ev(q)
+        r = _fold_system(ev, u, p, self.b, self.c)
+        if r is None:
+            return np.full((self.n + 1, self.n + 1), np.nan)
+        _, v, w, J = r
+        gu, gp = _fold_gradient(ev, u, p, v, w)
+        return bordered(J, ev.Fp(u, p), gu, gp)
+
+    def dfdp(self, U, q):
+        h = _FDQ * (1.0 + abs(q))
+        return (self.residual(U, q + h) - self.residual(U, q - h)) / (2.0 * h)
+
+    def observables(self, U, q):
+        u, p = self._split(U)
+        out = {"p": p}
+        base = self._ev(q)
+        if base.observables is not None:
+            out.update(base.observables(u, p))
+        return out
+
+    def _on_accept(self, U, q):
+        u, p = self._split(U)
+        r = _fold_system(self._ev(q), u, p, self.b, self.c)
+        if r is not None:
+            _, v, w, _ = r
+            nv, nw = np.linalg.norm(v), np.linalg.norm(w)
+            if nv > 0 and nw > 0 and np.all(np.isfinite(v)) and np.all(np.isfinite(w)):
+                self.c, self.b = v / nv, w / nw
+
+
+def continue_fold(
+    family: Callable,
+    fold: SpecialPoint,
+    q0: float,
+    settings: ContinuationSettings | None = None,
+    *,
+    parameter: str = "q",
+    events=None,
+    stop_on=(),
+    callback=None,
+) -> Branch:
+    """Follow a fold in a second parameter ``q``: the fold curve ``p(q)``.
+
+    Parameters
+    ----------
+    family : callable ``q -> Problem``
+        Problems ``F(u, p; q)`` continued in ``p`` at fixed ``q``.
+    fold : SpecialPoint
+        A located fold of ``family(q0)`` (from :func:`continue_branch` or
+        :func:`locate_fold`).
+    q0 : float
+        The value of ``q`` at which ``fold`` was computed.
+    settings : ContinuationSettings, optional
+        Steps, bounds (``p_min``/``p_max`` bound *q* here) and tolerances of the
+        continuation in ``q``. Branch-point detection is turned off (a sign
+        change of the augmented determinant would flag a codimension-2 point
+        this library does not classify); folds in ``q`` (e.g. a cusp) are
+        detected.
+    parameter : str
+        Name of ``q`` recorded in the branch.
+    events, stop_on, callback
+        As in :func:`continue_branch`; event functions receive ``(U, q)`` with
+        ``U = (u, p)``.
+
+    Returns
+    -------
+    Branch
+        ``branch.p`` holds the values of ``q``; ``branch.observables["p"]`` the
+        fold parameter ``p(q)`` (plus the problem's observables);
+        ``branch.u[:, :-1]`` the states, ``branch.u[:, -1]`` ``p``.
+    """
+    settings = ContinuationSettings() if settings is None else settings
+    if not isinstance(fold, SpecialPoint) or fold.kind != "fold" or fold.u is None:
+        raise ValueError(f"fold: expected a SpecialPoint of kind 'fold' with a state; got {fold!r}")
+    if not fold.located:
+        raise ValueError(
+            f"fold: the fold near p={fold.p:.10g} was only bracketed, not located "
+            f"({fold.data.get('message', 'no message')}). Locate it first with locate_fold, "
+            "or rerun continue_branch with a smaller ds_max.")
+    q0 = float(q0)
+    base = family(q0)
+    bev = Evaluator(base)
+    bev.warn_if_fd()
+    u = np.asarray(fold.u, dtype=float)
+    if settings.check_jacobian:
+        check_jacobian(base, u, fold.p)
+    v = np.asarray(fold.data.get("kernel", np.ones(u.size)), dtype=float)[: u.size]
+    r = _fold_system(bev, u, fold.p, v / np.linalg.norm(v), v / np.linalg.norm(v))
+    w = r[2] if r is not None else v
+    prob = FoldProblem(family, w, v, name=f"fold curve of {getattr(base, 'name', 'problem')}")
+    s2 = settings.replace(detect_branch_points=False, compute_stability=False,
+                          check_jacobian=False)
+    U0 = np.concatenate([u, [fold.p]])
+    br = continue_branch(prob, U0, q0, s2, events=events, stop_on=stop_on, callback=callback)
+    br.parameter = parameter
+    br.metadata["problem"] = getattr(base, "name", type(base).__name__)
+    br.metadata["fold_curve"] = {"p0": float(fold.p), "q0": q0, "parameter": parameter}
+    return br

@@ -1,0 +1,1 @@
+"""Statics: equilibrium branches of an elastica carrying a drop (see wet_elastica)."""

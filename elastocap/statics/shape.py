@@ -1,0 +1,173 @@
+"""Shapes and measures of a static equilibrium: full rod, drop interface, admissibility.
+
+The encapsulation measure (used identically by statics and dynamics) is the rod's total
+turning divided by pi,
+
+    M = (theta(L) - theta(0)) / pi,
+
+0 for a flat rod, 1 when the two ends are antiparallel (a U around the drop), 2 for a rod
+whose ends have come round to their starting direction (a closed loop). It is positive when
+the rod curls toward the drop side.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = [
+    "arc_points",
+    "full_shape",
+    "measures",
+    "polyline_crossings",
+    "encapsulation_measure",
+]
+
+# Points used to draw and to check crossings: 160 on the wet part resolve the crossing
+# location to ~1% of Delta, which is what a flag needs (it is not used in any equation).
+_N_WET_SAMPLES = 160
+_N_ARC_SAMPLES = 120
+
+
+def encapsulation_measure(theta_first: float, theta_last: float) -> float:
+    """M = (theta(L) - theta(0)) / pi from the end tangent angles (radians)."""
+    return (theta_last - theta_first) / math.pi
+
+
+def arc_points(x1, x2, tau, n=_N_ARC_SAMPLES):
+    """Points of the drop interface from x1 to x2, shape (n, 2).
+
+    The arc bulges to the left of x1 -> x2 (the +q side) for tau > 0, with half-angle tau.
+    Written without the radius so that a flat interface (tau -> 0) needs no special case.
+    """
+    x1 = np.asarray(x1, float)
+    x2 = np.asarray(x2, float)
+    chord = x2 - x1
+    d = float(np.hypot(*chord))
+    mid = 0.5 * (x1 + x2)
+    if d == 0.0:
+        return np.repeat(mid[None], n, axis=0)
+    c = chord / d
+    nrm = np.array([-c[1], c[0]])
+    v = np.linspace(-1.0, 1.0, n)
+    st = math.sin(tau)
+    if abs(tau) < 1e-8:
+        along = v
+        across = 0.5 * tau * (1.0 - v * v)
+    else:
+        along = np.sin(tau * v) / st
+        across = (np.cos(tau * v) - math.cos(tau)) / st
+    return mid + 0.5 * d * (along[:, None] * c + across[:, None] * nrm)
+
+
+def full_shape(problem, u, p=None, n_wet=_N_WET_SAMPLES):
+    """The whole rod and the drop interface.
+
+    Returns
+    -------
+    dict with
+        ``rod`` : ndarray (m, 2), points from S = 0 to S = L (dry arm, wet part, dry arm);
+        ``s`` : ndarray (m,), their arclengths;
+        ``interface`` : ndarray (k, 2), the drop's free surface from x(S1) to x(S2).
+    """
+    S = problem.state(u, p)
+    prm = problem.params
+    delta, L, center = prm["delta"], prm["L"], prm["center"]
+    s1 = center - 0.5 * delta
+    s2 = center + 0.5 * delta
+    xi = np.linspace(-1.0, 1.0, n_wet)
+    Mi = problem.interp_matrix(xi)
+    wet = np.column_stack([Mi @ S.x, Mi @ S.z])
+    t1 = np.array([math.cos(S.theta[0]), math.sin(S.theta[0])])
+    t2 = np.array([math.cos(S.theta[-1]), math.sin(S.theta[-1])])
+    parts = [wet]
+    s_parts = [s1 + 0.5 * delta * (xi + 1.0)]
+    if s1 > 0.0:
+        parts.insert(0, (wet[0] - s1 * t1)[None])
+        s_parts.insert(0, np.array([0.0]))
+    if s2 < L:
+        parts.append((wet[-1] + (L - s2) * t2)[None])
+        s_parts.append(np.array([L]))
+    rod = np.vstack(parts)
+    s = np.concatenate(s_parts)
+    iface = arc_points(wet[0], wet[-1], S.tau)
+    return {"rod": rod, "s": s, "interface": iface}
+
+
+def polyline_crossings(a, b=None, skip_adjacent=1, exclude_a=(), exclude_b=()):
+    """Number of proper crossings between segments of polylines a and b (a with itself if
+    b is None, ignoring segments within ``skip_adjacent`` of each other).
+
+    Parameters
+    ----------
+    a, b : ndarray (m, 2)
+    exclude_a, exclude_b : iterable of int
+        Segment indices not tested (e.g. those touching a contact point).
+    """
+    pa, qa = a[:-1], a[1:]
+    same = b is None
+    if same:
+        b = a
+    pb, qb = b[:-1], b[1:]
+    ra = qa - pa
+    rb = qb - pb
+
+    def cross(u, v):
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    den = cross(ra[:, None, :], rb[None, :, :])
+    diff = pb[None, :, :] - pa[:, None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = cross(diff, rb[None, :, :]) / den
+        w = cross(diff, ra[:, None, :]) / den
+    # strictly inside both segments (1e-9: touching end points are not crossings)
+    eps = 1e-9
+    hit = (den != 0.0) & (t > eps) & (t < 1 - eps) & (w > eps) & (w < 1 - eps)
+    if same:
+        i, j = np.indices(hit.shape)
+        hit &= j > i + skip_adjacent
+    for k in exclude_a:
+        hit[k, :] = False
+    for k in exclude_b:
+        hit[:, k] = False
+    return int(hit.sum())
+
+
+def measures(problem, u, p=None) -> dict[str, float]:
+    """Observables recorded at every point of a branch.
+
+    Keys: ``measure`` (encapsulation measure M), ``energy``, ``tip_angle`` (theta at S = L,
+    radians, in the gauge where the chord of a symmetric shape is horizontal),
+    ``asymmetry`` (mean tangent angle on the wet part: 0 for a mirror-symmetric shape, of
+    opposite signs for mirror images),
+    ``cap_angle`` (phi), ``chord`` (d), ``end_distance`` (|x(L) - x(0)| / L), ``omega``
+    (the unfolding multiplier: zero at a solution), ``rod_crossings`` and
+    ``interface_crossings`` (counts of self-crossings of the rod and of crossings of the
+    drop interface with the rod, from the drawn shape), ``admissible`` (1 when both are 0
+    and |phi| < 2 pi).
+    """
+    S = problem.state(u, p)
+    shp = full_shape(problem, u)
+    rod = shp["rod"]
+    iface = shp["interface"]
+    rod_x = polyline_crossings(rod, skip_adjacent=1)
+    # the interface starts and ends on the rod: skip its first/last segment
+    n_if = len(iface) - 1
+    if_x = polyline_crossings(iface, rod, exclude_a=(0, n_if - 1))
+    L = problem.params["L"]
+    end = float(np.hypot(*(rod[-1] - rod[0])))
+    adm = float(rod_x == 0 and if_x == 0 and abs(S.tau) < math.pi)
+    return {
+        "measure": encapsulation_measure(S.theta[0], S.theta[-1]),
+        "energy": problem.energy(u),
+        "tip_angle": float(S.theta[-1]),
+        "cap_angle": 2.0 * S.tau,
+        "chord": S.d,
+        "end_distance": end / L,
+        "asymmetry": float(0.5 * (problem.wh @ S.theta)),
+        "omega": float(u[-1]),
+        "rod_crossings": float(rod_x),
+        "interface_crossings": float(if_x),
+        "admissible": adm,
+    }
