@@ -245,9 +245,14 @@ def bench_shake(repeat=5):
         _, it, _, _ = shake(rod.x, xn, winv, rod.edge_len, *w)
         xg = xs.copy()
         sw = gauss_seidel_shake(rod.x, xg, winv, rod.edge_len, 1e-13, 100000)
-        tn = median_time(lambda: shake(rod.x, xs.copy(), winv, rod.edge_len, *w), repeat)
-        tg = median_time(lambda: gauss_seidel_shake(rod.x, xs.copy(), winv, rod.edge_len,
-                                                    1e-13, 100000), repeat)
+        def newton(rod=rod, xs=xs, winv=winv, w=w):
+            shake(rod.x, xs.copy(), winv, rod.edge_len, *w)
+
+        def gs(rod=rod, xs=xs, winv=winv):
+            gauss_seidel_shake(rod.x, xs.copy(), winv, rod.edge_len, 1e-13, 100000)
+
+        tn = median_time(newton, repeat)
+        tg = median_time(gs, repeat)
         print(f"N={n:3d}: Newton {it} iterations {tn * 1e6:7.1f} us | Gauss-Seidel {sw:5d} "
               f"sweeps {tg * 1e6:8.1f} us | ratio {tg / tn:6.1f}x")
 

@@ -12,6 +12,7 @@ References
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -605,10 +606,19 @@ def _detect(core, run, k, skip_first=False):
         run.sps.append(sp)
     # ---- stability changes
     if run.stab[k - 1] >= 0 and run.stab[k] >= 0 and run.stab[k - 1] != run.stab[k]:
-        run.sps.append(SpecialPoint(
+        sp = SpecialPoint(
             "stability", k, run.p[k], run.u[k].copy(), abs(run.p[k] - run.p[k - 1]), False,
             f"{run.stab[k - 1]} -> {run.stab[k]}",
-            {"stability": [run.stab[k - 1], run.stab[k]]}))
+            {"stability": [run.stab[k - 1], run.stab[k]]})
+        # For a gradient problem the (projected) Hessian can only change
+        # inertia where the Jacobian is singular: at a fold or branch point.
+        # If one was located in the same interval, the change is there.
+        for other in run.sps:
+            if other.index == k and other.kind in ("fold", "branch_point") and other.located:
+                sp.p, sp.u, sp.precision, sp.located = other.p, other.u, other.precision, True
+                sp.data["at"] = other.kind
+                break
+        run.sps.append(sp)
     # ---- user events
     for name, g in run.events.items():
         ga, gb = run.ev_vals[k - 1][name], run.ev_vals[k][name]
@@ -696,6 +706,13 @@ def _assemble(core, runs, problem, settings, extra_meta, parameter="p") -> Branc
         "nfev": core.ev.nfev,
         "njev": core.ev.njev,
     }
+    params = getattr(problem, "parameters", None)
+    if params is not None:
+        try:  # recorded only if JSON-able (a dict of numbers/strings)
+            json.dumps(params)
+            meta["problem_parameters"] = params
+        except (TypeError, ValueError):
+            meta["problem_parameters"] = repr(params)
     meta.update(extra_meta)
     keep = settings.store_states
     return Branch(

@@ -30,6 +30,8 @@ class Problem:
     ----------
     name : str
         Recorded in a branch's metadata.
+    parameters : dict, optional
+        The fixed parameters (JSON-able), recorded in a branch's metadata.
 
     Methods
     -------
@@ -44,7 +46,9 @@ class Problem:
     hessian(u, p) -> ndarray (N, N) | sparse
         For problems that are gradients of an energy: the symmetric Hessian.
         When present, the stability index (number of negative eigenvalues) is
-        recorded at every point.
+        recorded at every point. A metric (an SPD mass matrix M in
+        ``H v = mu M v``) needs no argument: by Sylvester's law of inertia it
+        does not change the number of negative eigenvalues.
     constraint_jacobian(u, p) -> ndarray (m, N)
         Optional: the Hessian is restricted to the null space of this matrix
         (admissible directions). ``N`` may differ from ``n`` (e.g. ``u`` holds

@@ -124,18 +124,26 @@ def _fold_report(bs) -> dict:
 
 
 def _print_folds(bs) -> None:
-    print(f"{bs.scene.name}: {len(bs.branches)} branches in {bs.parameter} over "
-          f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (N={bs.metadata['N']}, "
-          f"{bs.metadata['wall_time_s']:.2f} s)")
+    print(
+        f"{bs.scene.name}: {len(bs.branches)} branches in {bs.parameter} over "
+        f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (N={bs.metadata['N']}, "
+        f"{bs.metadata['wall_time_s']:.2f} s)"
+    )
     for f in bs.folds:
-        print(f"  fold          {f['value']:.12f}  ± {f['error_estimate']:.1e}  measure "
-              f"{f['measure']:+.6f}  stability {f['stability_change']}")
+        print(
+            f"  fold          {f['value']:.12f}  ± {f['error_estimate']:.1e}  measure "
+            f"{f['measure']:+.6f}  stability {f['stability_change']}"
+        )
     for b in bs.branch_points:
-        print(f"  branch point  {b['value']:.12f}            measure {b['measure']:+.6f}  "
-              f"stability {b['stability_change']}")
+        print(
+            f"  branch point  {b['value']:.12f}            measure {b['measure']:+.6f}  "
+            f"stability {b['stability_change']}"
+        )
     for m in bs.maxwell_points:
-        print(f"  equal energy  {m['value']:.12f}            measures "
-              + ", ".join(f"{v:+.6f}" for v in m["measures"]))
+        print(
+            f"  equal energy  {m['value']:.12f}            measures "
+            + ", ".join(f"{v:+.6f}" for v in m["measures"])
+        )
 
 
 def cmd_branches(args) -> int:
@@ -242,18 +250,34 @@ def build_parser() -> argparse.ArgumentParser:
         elif name == "demo":
             _scene_args(p, default=DEFAULT_SCENE)
         if name in ("branches", "folds"):
-            p.add_argument("--param", default="drop.wetted_length", metavar="KEY",
-                           help="scene key to continue in (default drop.wetted_length)")
-            p.add_argument("--range", nargs=2, type=float, metavar=("LO", "HI"),
-                           help="parameter range (default: (0.02 L, L) for the wetted length)")
+            p.add_argument(
+                "--param",
+                default="drop.wetted_length",
+                metavar="KEY",
+                help="scene key to continue in (default drop.wetted_length)",
+            )
+            p.add_argument(
+                "--range",
+                nargs=2,
+                type=float,
+                metavar=("LO", "HI"),
+                help="parameter range (default: (0.02 L, L) for the wetted length)",
+            )
         if name in ("branches", "figures", "demo"):
             p.add_argument("--out", metavar="DIR", help="output directory (default: out/...)")
         if name == "folds":
-            p.add_argument("--check", metavar="FILE",
-                           help="compare with a reference (the JSON of `folds --json`): "
-                           "exit 0 if every fold matches, 1 otherwise")
-            p.add_argument("--rtol", type=float, default=None,
-                           help="relative tolerance of --check (default 1e-8)")
+            p.add_argument(
+                "--check",
+                metavar="FILE",
+                help="compare with a reference (the JSON of `folds --json`): "
+                "exit 0 if every fold matches, 1 otherwise",
+            )
+            p.add_argument(
+                "--rtol",
+                type=float,
+                default=None,
+                help="relative tolerance of --check (default 1e-8)",
+            )
         if name == "figures":
             p.add_argument("--only", metavar="NAME", help="one figure (e.g. supp-fig6)")
             p.add_argument("--fast", action="store_true", help="coarse and quick (for tests)")

@@ -22,11 +22,21 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     bs = trace_branches(scene, error_estimates=not fast)
     png = out / "supp-fig6.png"
     plot_branch_set(
-        bs, png,
+        bs,
+        png,
         title="Supplementary Fig 6: A/ℓec² = 1.5, L/ℓec = 4.6 (solid stable, dashed unstable, "
         "grey inadmissible)",
     )
     js = out / "supp-fig6.json"
-    js.write_text(json.dumps({"folds": bs.folds, "branch_points": bs.branch_points,
-                              "maxwell_points": bs.maxwell_points}, indent=2, default=str))
+    js.write_text(
+        json.dumps(
+            {
+                "folds": bs.folds,
+                "branch_points": bs.branch_points,
+                "maxwell_points": bs.maxwell_points,
+            },
+            indent=2,
+            default=str,
+        )
+    )
     return [png, js]

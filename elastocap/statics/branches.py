@@ -69,17 +69,22 @@ def problem_for(
     """The discretized equilibrium problem of a scene, continued in ``parameter``."""
     _check_statics_scene(scene)
     if parameter not in PARAMETERS:
-        raise SceneError(
-            "--param", parameter, f"expected one of {', '.join(PARAMETERS)}"
-        )
+        raise SceneError("--param", parameter, f"expected one of {', '.join(PARAMETERS)}")
     if N is None:
         N = scene.numerics.cheb_points or ACCURACY_N[scene.numerics.accuracy]
     if N < 4:
         raise SceneError("numerics.cheb_points", N, "expected at least 4 intervals")
     d = scene.drop
     return WetElasticaProblem(
-        N, d.wetted_length, d.area, d.line_tension, scene.rod.bending_modulus,
-        scene.rod.length, d.center, parameter, nodes,
+        N,
+        d.wetted_length,
+        d.area,
+        d.line_tension,
+        scene.rod.bending_modulus,
+        scene.rod.length,
+        d.center,
+        parameter,
+        nodes,
     )
 
 
@@ -291,7 +296,10 @@ def trace_branches(
     p_scene = problem.get(parameter)
     L = scene.rod.length
     if prange is None:
-        prange = (0.02 * L, L) if parameter == "drop.wetted_length" else (0.5 * p_scene, 2 * p_scene)
+        if parameter == "drop.wetted_length":
+            prange = (0.02 * L, L)
+        else:
+            prange = (0.5 * p_scene, 2.0 * p_scene)
     lo, hi = float(prange[0]), float(prange[1])
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         raise SceneError("--range", list(prange), "expected two finite numbers LO < HI")
@@ -386,8 +394,10 @@ def _on_branch(problem, new: Branch, old: Branch) -> bool:
     (away from a branch point it may start from) both lie on ``old``."""
     if new.u is None or old.u is None or not len(new) or not len(old):
         return False
-    return all(_point_on(problem, float(new.p[m]), new.u[m], old) for m in
-               sorted({len(new) // 4, (3 * len(new)) // 4}))
+    return all(
+        _point_on(problem, float(new.p[m]), new.u[m], old)
+        for m in sorted({len(new) // 4, (3 * len(new)) // 4})
+    )
 
 
 def _point_on(problem, pm, um, old: Branch) -> bool:
@@ -424,8 +434,10 @@ def _fold_error(problem: WetElasticaProblem, sp) -> float:
     """
     N2 = problem.N + max(8, problem.N // 2)
     fine = WetElasticaProblem(
-        N2, *(problem.params[k] for k in ("delta", "area", "gamma", "B", "L", "center")),
-        problem.parameter, problem.nodes,
+        N2,
+        *(problem.params[k] for k in ("delta", "area", "gamma", "B", "L", "center")),
+        problem.parameter,
+        problem.nodes,
     )
     fine.set(problem.parameter, sp.p)
     Mi = problem.interp_matrix(fine.xi)
@@ -507,88 +519,94 @@ def _dedupe(points):
 
 
 def _stable_runs(br: Branch):
-    """Index ranges [a, b] of consecutive stable points (monotone in p between folds)."""
+    """Index ranges [a, b] of consecutive stable points along which p is monotone."""
     runs = []
-    st = br.stability == 0
-    i = 0
     n = len(br)
+    i = 0
     while i < n:
-        if st[i]:
-            j = i
-            while j + 1 < n and st[j + 1] and (br.p[j + 1] - br.p[j]) * (br.p[min(i + 1, j + 1)] - br.p[i]) >= 0:
-                j += 1
-            if j > i:
-                runs.append((i, j))
-            i = j + 1
-        else:
+        if br.stability[i] != 0:
             i += 1
+            continue
+        j = i
+        while j + 1 < n and br.stability[j + 1] == 0:
+            if j > i and (br.p[j + 1] - br.p[j]) * (br.p[j] - br.p[j - 1]) < 0:
+                break
+            j += 1
+        if j > i:
+            runs.append((i, j))
+        i = j + 1
     return runs
+
+
+def _solve_on_run(problem, br, i, j, p):
+    """The state of branch ``br`` at parameter ``p`` within the monotone run [i, j]."""
+    ps = br.p[i : j + 1]
+    order = np.argsort(ps)
+    ps = ps[order]
+    us = br.u[i : j + 1][order]
+    k = int(np.clip(np.searchsorted(ps, p), 1, len(ps) - 1))
+    w = 0.0 if ps[k] == ps[k - 1] else (p - ps[k - 1]) / (ps[k] - ps[k - 1])
+    problem.set(problem.parameter, p)
+    return newton(problem, (1 - w) * us[k - 1] + w * us[k], p, 1e-12)
+
+
+def _energy_gap(problem, run_a, run_c, p):
+    ua = _solve_on_run(problem, *run_a, p)
+    uc = _solve_on_run(problem, *run_c, p)
+    if ua is None or uc is None:
+        return math.nan
+    problem.set(problem.parameter, p)
+    return problem.energy(ua, p) - problem.energy(uc, p)
 
 
 def _maxwell_points(result: BranchSet) -> list:
     """Parameter values where two stable equilibria have equal energy (the global minimum
     passes from one branch to the other), located by Brent on Newton-corrected energies."""
     problem = result.problem
-    par = result.parameter
-    pieces = []
-    for b, br in enumerate(result.branches):
-        if br.u is None:
-            continue
-        for i, j in _stable_runs(br):
-            pieces.append((b, br, i, j))
+    runs = [
+        (b, (br, i, j))
+        for b, br in enumerate(result.branches)
+        if br.u is not None
+        for i, j in _stable_runs(br)
+    ]
     out = []
-    for a in range(len(pieces)):
-        for c in range(a + 1, len(pieces)):
-            ba, bra, ia, ja = pieces[a]
-            bc, brc, ic, jc = pieces[c]
-            pa = bra.p[ia : ja + 1]
-            pc = brc.p[ic : jc + 1]
-            lo = max(pa.min(), pc.min())
-            hi = min(pa.max(), pc.max())
+    for a in range(len(runs)):
+        for c in range(a + 1, len(runs)):
+            (ba, ra), (bc, rc) = runs[a], runs[c]
+            pa = ra[0].p[ra[1] : ra[2] + 1]
+            pc = rc[0].p[rc[1] : rc[2] + 1]
+            lo, hi = max(pa.min(), pc.min()), min(pa.max(), pc.max())
             if not lo < hi:
                 continue
-
-            def solve(br, i, j, p):
-                ps = br.p[i : j + 1]
-                order = np.argsort(ps)
-                us = br.u[i : j + 1][order]
-                k = int(np.clip(np.searchsorted(ps[order], p), 1, len(ps) - 1))
-                p0, p1 = ps[order][k - 1], ps[order][k]
-                w = 0.0 if p1 == p0 else (p - p0) / (p1 - p0)
-                guess = (1 - w) * us[k - 1] + w * us[k]
-                problem.set(par, p)
-                u = newton(problem, guess, p, 1e-12)
-                return u
-
-            def diff(p):
-                ua = solve(bra, ia, ja, p)
-                uc = solve(brc, ic, jc, p)
-                if ua is None or uc is None:
-                    return math.nan
-                problem.set(par, p)
-                return problem.energy(ua, p) - problem.energy(uc, p)
-
             samples = np.linspace(lo, hi, 9)
-            vals = [diff(p) for p in samples]
-            if all(abs(v) < 1e-9 for v in vals if math.isfinite(v)):
+            vals = [_energy_gap(problem, ra, rc, p) for p in samples]
+            finite = [v for v in vals if math.isfinite(v)]
+            if finite and max(abs(v) for v in finite) < 1e-9:
                 continue  # mirror images: equal energies everywhere
             for k in range(len(samples) - 1):
                 v0, v1 = vals[k], vals[k + 1]
-                if math.isfinite(v0) and math.isfinite(v1) and v0 * v1 < 0:
-                    pm = brentq(diff, samples[k], samples[k + 1], xtol=1e-13, rtol=1e-14)
-                    ua = solve(bra, ia, ja, pm)
-                    problem.set(par, pm)
-                    out.append(
-                        {
-                            "value": float(pm),
-                            "energy": float(problem.energy(ua, pm)),
-                            "branches": [ba, bc],
-                            "measures": [
-                                float(problem.observables(ua, pm)["measure"]),
-                                float(problem.observables(solve(brc, ic, jc, pm), pm)["measure"]),
-                            ],
-                        }
-                    )
+                if not (math.isfinite(v0) and math.isfinite(v1) and v0 * v1 < 0):
+                    continue
+                pm = brentq(
+                    lambda p, ra=ra, rc=rc: _energy_gap(problem, ra, rc, p),
+                    samples[k],
+                    samples[k + 1],
+                    xtol=1e-13,
+                    rtol=1e-14,
+                )
+                ua = _solve_on_run(problem, *ra, pm)
+                uc = _solve_on_run(problem, *rc, pm)
+                out.append(
+                    {
+                        "value": float(pm),
+                        "energy": float(problem.energy(ua, pm)),
+                        "branches": [ba, bc],
+                        "measures": [
+                            float(problem.observables(ua, pm)["measure"]),
+                            float(problem.observables(uc, pm)["measure"]),
+                        ],
+                    }
+                )
     return out
 
 

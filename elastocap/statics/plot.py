@@ -12,8 +12,17 @@ from elastocap.statics.shape import full_shape
 
 __all__ = ["draw_shape", "plot_branch_set"]
 
-_COLORS = ["tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown",
-           "tab:pink", "tab:olive", "tab:cyan"]
+_COLORS = [
+    "tab:blue",
+    "tab:red",
+    "tab:green",
+    "tab:purple",
+    "tab:orange",
+    "tab:brown",
+    "tab:pink",
+    "tab:olive",
+    "tab:cyan",
+]
 
 
 def draw_shape(ax, problem, u, p, color="k", drop_color="tab:blue", ground=False):
@@ -76,7 +85,8 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
         first = True
         for i, j, st, ad in _segments(br.p, yv, stable, adm):
             ax.plot(
-                br.p[i : j + 1], yv[i : j + 1],
+                br.p[i : j + 1],
+                yv[i : j + 1],
                 ls="-" if st else "--",
                 color=col if ad else "0.6",
                 lw=2.0 if st else 1.2,
@@ -85,8 +95,14 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
             first = False
     for f in bs.folds:
         ax.plot(f["value"], f["measure"], "o", color="k", ms=6, zorder=5)
-        ax.annotate(f"fold Δ={f['value']:.8f}", (f["value"], f["measure"]),
-                    textcoords="offset points", xytext=(-10, -16), fontsize=7, ha="right")
+        ax.annotate(
+            f"fold Δ={f['value']:.8f}",
+            (f["value"], f["measure"]),
+            textcoords="offset points",
+            xytext=(-10, -16),
+            fontsize=7,
+            ha="right",
+        )
     for bp in bs.branch_points:
         ax.plot(bp["value"], bp["measure"], "s", mfc="w", mec="k", ms=6, zorder=5)
     for m in bs.maxwell_points:
@@ -95,8 +111,10 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
         ax.axvline(m["value"], color="tab:orange", lw=0.6, ls=":")
     ax.set_xlabel(_axis_label(bs.parameter))
     ax.set_ylabel("encapsulation measure  (θ(L) − θ(0)) / π" if y == "measure" else y)
-    ax.set_title(title or f"{bs.scene.name}: equilibria (solid stable, dashed unstable, "
-                 "grey inadmissible)", fontsize=9)
+    ax.set_title(
+        title or f"{bs.scene.name}: equilibria (solid stable, dashed unstable, grey inadmissible)",
+        fontsize=9,
+    )
     ax.grid(alpha=0.25)
     ax.legend(fontsize=7, loc="upper left")
     _add_insets(fig, ax, bs, y, insets)
@@ -137,9 +155,7 @@ def _add_insets(fig, ax, bs, y, n):
     span = np.ptp(pts, axis=0) + 1e-12
     chosen = [0]
     while len(chosen) < min(n, len(cands)):
-        d = np.min(
-            [np.hypot(*((pts - pts[c]) / span).T) for c in chosen], axis=0
-        )
+        d = np.min([np.hypot(*((pts - pts[c]) / span).T) for c in chosen], axis=0)
         chosen.append(int(np.argmax(d)))
     problem = bs.problem
     saved = {k: problem.params[k] for k in problem.params}
@@ -151,7 +167,12 @@ def _add_insets(fig, ax, bs, y, n):
         problem.set(bs.parameter, float(br.p[i]))
         draw_shape(ax_in, problem, br.u[i], float(br.p[i]), color=_COLORS[b % len(_COLORS)])
         ax_in.set_title(f"{br.p[i]:.2f}", fontsize=6)
-        ax.annotate("", xy=(x0, y0), xycoords="data",
-                    xytext=(0.5, 0.5), textcoords=ax_in.transAxes,
-                    arrowprops={"arrowstyle": "-", "color": "0.5", "lw": 0.5})
+        ax.annotate(
+            "",
+            xy=(x0, y0),
+            xycoords="data",
+            xytext=(0.5, 0.5),
+            textcoords=ax_in.transAxes,
+            arrowprops={"arrowstyle": "-", "color": "0.5", "lw": 0.5},
+        )
     problem.params.update(saved)

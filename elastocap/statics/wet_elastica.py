@@ -144,7 +144,14 @@ class WetElasticaProblem(Problem):
         """The same problem continued in another scene key."""
         p = self.params
         return WetElasticaProblem(
-            self.N, p["delta"], p["area"], p["gamma"], p["B"], p["L"], p["center"], parameter,
+            self.N,
+            p["delta"],
+            p["area"],
+            p["gamma"],
+            p["B"],
+            p["L"],
+            p["center"],
+            parameter,
             self.nodes,
         )
 
@@ -203,9 +210,10 @@ class WetElasticaProblem(Problem):
         """E_N: bending of the wet part + gamma lambda (the arms are straight)."""
         S = self.state(u, p)
         th = S.theta
-        return 0.5 * self.params["B"] * (2.0 / self.params["delta"]) * float(
-            th @ self.K @ th
-        ) + self.params["gamma"] * S.lam
+        return (
+            0.5 * self.params["B"] * (2.0 / self.params["delta"]) * float(th @ self.K @ th)
+            + self.params["gamma"] * S.lam
+        )
 
     def _grad(self, S):
         B, gam, delta = self.params["B"], self.params["gamma"], self.params["delta"]

@@ -88,7 +88,7 @@ def test_fd_fold_dense_sparse_banded_agree_and_stability():
     assert set(dense.stability[k:]) == {1}
     stab = dense.points("stability")
     assert len(stab) == 1 and stab[0].data["stability"] == [0, 1]
-    assert abs(stab[0].p - pf) <= stab[0].precision + 1e-12
+    assert stab[0].data["at"] == "fold" and stab[0].located and stab[0].p == pf
 
 
 def test_both_directions_moore_penrose_and_observables():

@@ -23,16 +23,17 @@ def exact_P(theta0):
     return (2 * ellipk(np.sin(theta0 / 2) ** 2)) ** 2
 
 
-def test_trivial_branch_points_and_stability():
-    prob = Elastica(100)
-    br = C.continue_branch(prob, np.zeros(102), 1.0, S)
+@pytest.mark.parametrize("L", [1.0, 2.0])
+def test_trivial_branch_points_and_stability(L):
+    prob = Elastica(100, L=L)
+    br = C.continue_branch(prob, np.zeros(102), 1.0 / L**2, S.replace(p_max=45.0 / L**2))
     bps = br.branch_points
     assert len(bps) == 2 and all(b.located for b in bps)
     for k, b in enumerate(bps, start=1):
         # The discrete problem's exact buckling load, to the location tolerance.
         assert abs(b.p / prob.discrete_buckling_load(k) - 1) < 1e-10
-        # Continuum k^2 pi^2: O(h^2) error (k pi h)^2 / 12 = 8.2e-5 k^2 at N = 100.
-        assert abs(b.p / (k * np.pi) ** 2 - 1) < 1.1 * (k * np.pi / 100) ** 2 / 12
+        # Continuum k^2 pi^2 B / L^2: O(h^2) error (k pi h/L)^2 / 12 = 8.2e-5 k^2 at N = 100.
+        assert abs(b.p / (k * np.pi / L) ** 2 - 1) < 1.1 * (k * np.pi / 100) ** 2 / 12
     # Stability index = number of loads passed (KKT inertia with y(L) = 0).
     P = br.p
     assert set(br.stability[P < bps[0].p]) == {0}
