@@ -187,15 +187,24 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
     n, L = st["n_edges"], scene.rod.length
     x0 = np.zeros((n + 1, 2))
     x0[:, 0] = np.linspace(0.0, L, n + 1)
-    rod = Rod(x0, np.zeros_like(x0), np.full(n, L / n), scene.rod.mass_per_length,
-              scene.rod.bending_modulus)
+    rod = Rod(
+        x0,
+        np.zeros_like(x0),
+        np.full(n, L / n),
+        scene.rod.mass_per_length,
+        scene.rod.bending_modulus,
+    )
     effects, events = _effects(scene)
     for ev in events:
         if ev.time > st["t_max"]:
             raise SceneError("drop.events", ev.time, f"event after numerics.t_max = {st['t_max']}")
     sim = simulate(
-        rod, effects, dt=st["dt"], t_end=st["t_max"],
-        frames=frames or DEFAULT_FRAMES, events=events,
+        rod,
+        effects,
+        dt=st["dt"],
+        t_end=st["t_max"],
+        frames=frames or DEFAULT_FRAMES,
+        events=events,
         rest=RestCriterion(st["rest_kinetic"], st["rest_time"]),
     )
     s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
@@ -243,8 +252,12 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
         rod_crossing_time=rod_t,
         interface_crossing_time=if_t,
         decided_after_crossing=bool(crossed) and min(crossed) <= t_end,
-        settings={**st, "scene": scene.name, "scene_digest": scene.digest(),
-                  "version": __version__},
+        settings={
+            **st,
+            "scene": scene.name,
+            "scene_digest": scene.digest(),
+            "version": __version__,
+        },
         simulation=sim,
         measure_history=measures,
     )

@@ -56,8 +56,16 @@ def solve_kirchhoff(delta, area, gamma, B, y_guess, p_guess, tol=1e-10):
         # interface tangent at x1: the chord direction turned by +tau
         ux, uz = ct * cx - st * cz, st * cx + ct * cz
         return np.array(
-            [ya[1], ya[2], ya[3], ya[4], ya[0] + yb[0],
-             kap - kappa, n1x + gamma * ux, n1z + gamma * uz]
+            [
+                ya[1],
+                ya[2],
+                ya[3],
+                ya[4],
+                ya[0] + yb[0],
+                kap - kappa,
+                n1x + gamma * ux,
+                n1z + gamma * uz,
+            ]
         )
 
     s = np.linspace(0.0, delta, 80)

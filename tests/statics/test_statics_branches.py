@@ -33,6 +33,7 @@ def test_flat_branch_is_stable_everywhere_and_bistability_above_the_fold(fig6):
     primary = fig6.branches[fig6.labels.index("primary")]
     assert np.all(primary.stability == 0)
     assert primary.p.min() == pytest.approx(0.02 * 4.6) and primary.p.max() == pytest.approx(4.6)
+
     # at Delta = 2.5 (paper: stays open) one stable state; at 4 (encapsulates) two
     def stable_measures(delta):
         out = []
@@ -127,7 +128,10 @@ def test_branches_cli_writes_files(tmp_path, capsys):
 
 def test_bad_range_exit_2(capsys):
     assert main(["folds", "supp-fig5", "--range", "3", "9"]) == 2
-    assert "--range: got [3.0, 9.0]; expected 0 < LO < HI <= rod.length = 4.6" in capsys.readouterr().err
+    assert (
+        "--range: got [3.0, 9.0]; expected 0 < LO < HI <= rod.length = 4.6"
+        in capsys.readouterr().err
+    )
     assert main(["folds", "supp-fig5", "--param", "drop.colour"]) == 2
 
 

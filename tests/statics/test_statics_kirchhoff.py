@@ -3,11 +3,10 @@ equations solved by scipy.integrate.solve_bvp: same shape, forces and free-end m
 
 import numpy as np
 import pytest
+from kirchhoff_reference import solve_kirchhoff
 
 from elastocap.statics.branches import newton
 from elastocap.statics.wet_elastica import WetElasticaProblem
-
-from kirchhoff_reference import solve_kirchhoff
 
 
 @pytest.mark.parametrize(
