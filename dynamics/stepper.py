@@ -24,9 +24,14 @@ For each distinct tuple of effect kernels the module generates the source of a s
 directory and imports it, so that numba's on-disk cache (``cache=True``) works on it and
 a second process loads the compiled loop instead of compiling it.  An absent effect costs
 nothing, and all the steps between two output frames or events run inside one compiled
-call (no Python per step).  The alternative, a generic loop over a tuple of first-class
-functions, cannot be cached by numba and calls kernels indirectly; see
-``benchmarks/dynamics_speed.py`` for the overhead measured against a bare kernel loop.
+call (no Python per step).  Measured (``benchmarks/dynamics_speed.py``, 200 edges):
+the generated bending-only stepper runs at 0.92-1.03x the time of a hand-written RATTLE
+loop with the same kernels (noise level); a force effect adds 0-2% (gravity, loads, an
+external kernel), damping 8%, a constraint effect (ground, clamp) ~37% (the projection
+is then always verified: with held coordinates Newton can converge only linearly); a
+Python call per step would add 3.1 us/step (1.6x at 100 edges).  Not chosen: a generic
+loop over a tuple of first-class functions (indirect calls, not cacheable by numba).
+Cold compile of one stepper ~7-15 s, warm load ~0.5 s.
 
 Cache directory: ``$DYNAMICS_CACHE_DIR``, else ``$XDG_CACHE_HOME/elastocap-dynamics``,
 else ``~/.cache/elastocap-dynamics``, else the system temporary directory.

@@ -187,6 +187,45 @@ def cmd_folds(args) -> int:
     return 0
 
 
+def cmd_impact(args) -> int:
+    from elastocap.impact import run_impact
+
+    scene = load_scene(args.scene, args.overrides)
+    if args.frames is not None and args.frames < 2:
+        raise UsageError(f"--frames: got {args.frames}; expected an integer >= 2")
+    res = run_impact(scene)
+    rep = res.to_dict()
+    if args.out:
+        from elastocap.frames import frame_strip
+
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        npz = out / f"impact-{scene.name}.npz"
+        res.simulation.save_npz(npz)
+        meta = {**rep, "scene": scene.data}
+        (out / f"impact-{scene.name}.json").write_text(json.dumps(_jsonable(meta), indent=2))
+        png = out / f"impact-{scene.name}-frames.png"
+        frame_strip(res, scene, png, k=args.frames or 8)
+        rep["files"] = [str(npz), str(out / f"impact-{scene.name}.json"), str(png)]
+    if args.json:
+        _print_json(rep)
+    else:
+        print(f"{scene.name}: {res.outcome} ({res.criterion})")
+        print(
+            f"  final measure {res.final_measure:.6f}, t_end {res.t_end:.4g}, {res.steps} "
+            f"steps, {res.wall_time_s:.2f} s, {res.status}"
+        )
+        if res.rod_crossing_time is not None or res.interface_crossing_time is not None:
+            print(
+                f"  flagged: rod crosses itself at t = {res.rod_crossing_time}, interface "
+                f"crosses the rod at t = {res.interface_crossing_time} (the model has no "
+                "contact between them)"
+            )
+        for f in rep.get("files", []):
+            print(f"  wrote {f}")
+    return 0
+
+
 def cmd_figures(args) -> int:
     from elastocap.paper_figures import FIGURES, run_figures
 
@@ -232,6 +271,7 @@ COMMANDS: dict[str, tuple[Callable, str]] = {
     "show": (cmd_show, "print a validated scene and its derived quantities"),
     "branches": (cmd_branches, "trace every equilibrium branch; write .npz, JSON and a PNG"),
     "folds": (cmd_folds, "locate the folds (limit points); --check a reference file"),
+    "impact": (cmd_impact, "run an impact to rest; its outcome and measures"),
     "figures": (cmd_figures, "regenerate the paper's figures"),
     "demo": (cmd_demo, "the quick-start tour on the default scene"),
 }
@@ -245,7 +285,7 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(func=func)
         p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-        if name in ("show", "branches", "folds"):
+        if name in ("show", "branches", "folds", "impact"):
             _scene_args(p)
         elif name == "demo":
             _scene_args(p, default=DEFAULT_SCENE)
@@ -263,7 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
                 metavar=("LO", "HI"),
                 help="parameter range (default: (0.02 L, L) for the wetted length)",
             )
-        if name in ("branches", "figures", "demo"):
+        if name in ("branches", "figures", "demo", "impact"):
             p.add_argument("--out", metavar="DIR", help="output directory (default: out/...)")
         if name == "folds":
             p.add_argument(
@@ -277,6 +317,13 @@ def build_parser() -> argparse.ArgumentParser:
                 type=float,
                 default=None,
                 help="relative tolerance of --check (default 1e-8)",
+            )
+        if name == "impact":
+            p.add_argument(
+                "--frames",
+                type=int,
+                metavar="K",
+                help="frames in the PNG strip written with --out (default 8)",
             )
         if name == "figures":
             p.add_argument("--only", metavar="NAME", help="one figure (e.g. supp-fig6)")

@@ -102,7 +102,7 @@ NUMERICS_KEYS: dict[str, tuple[str, Any]] = {
     "n_edges": ("int+", 0),
     "dt": ("nonneg", 0.0),
     "t_max": ("pos", 200.0),
-    "rest_kinetic": ("pos", 1e-8),
+    "rest_kinetic": ("pos", 1e-6),
     "rest_time": ("pos", 1.0),
 }
 EXPERIMENT_KEYS: dict[str, tuple[str, Any]] = {
@@ -280,7 +280,7 @@ class Numerics:
     n_edges: int = 0
     dt: float = 0.0
     t_max: float = 200.0
-    rest_kinetic: float = 1e-8
+    rest_kinetic: float = 1e-6
     rest_time: float = 1.0
 
 
