@@ -241,28 +241,86 @@ def cmd_figures(args) -> int:
     return 0
 
 
+def cmd_overlay(args) -> int:
+    from elastocap.overlay import parse_range, run_overlay
+
+    scene = load_scene(args.scene, args.overrides)
+    deltas = parse_range(args.delta, "--delta")
+    if deltas.max() > scene.rod.length:
+        raise UsageError(
+            f"--delta: got {args.delta}; expected values <= rod.length = {scene.rod.length}"
+        )
+    res = run_overlay(scene, deltas, _out_dir(args, f"overlay-{scene.name}"))
+    if args.json:
+        _print_json(
+            {"runs": res["runs"], "files": res.get("files", []), "folds": res["branch_set"].folds}
+        )
+    else:
+        for r in res["runs"]:
+            print(
+                f"  Δ = {r['wetted_length']:.4f}: {r['outcome']:<12} M = "
+                f"{r['final_measure']:+.5f} -> {r['branch_reached']} (shape distance "
+                f"{r['shape_distance']:.2e})"
+            )
+        for f in res.get("files", []):
+            print(f"wrote {f}")
+    return 0
+
+
 def cmd_demo(args) -> int:
-    """The quick-start tour on the default scene: the scene, its branches and folds."""
+    """The quick-start tour: branches of the default scene, two impacts on either side of
+    the selection threshold, and the overlay of the impacts on the equilibria."""
+    from elastocap.frames import frame_strip
+    from elastocap.impact import run_impact
+    from elastocap.overlay import classify_final_state
+    from elastocap.statics.branches import trace_branches
     from elastocap.statics.plot import plot_branch_set
 
     scene = load_scene(args.scene, args.overrides)
-    if not args.json:
-        cmd_show(args)
-        print()
-    from elastocap.statics.branches import trace_branches
-
-    bs = trace_branches(scene)
     out = _out_dir(args, "demo")
     out.mkdir(parents=True, exist_ok=True)
+    say = (lambda *a: None) if args.json else print
+    say(f"elastocap {__version__}: the tour of scene {scene.name!r} -> {out}/")
+    bs = trace_branches(scene)
+    _print_folds(bs) if not args.json else None
     png = out / f"{scene.name}-branches.png"
     plot_branch_set(bs, png)
+    files = [str(png)]
+    fold = min((f["value"] for f in bs.folds), default=0.5 * scene.rod.length)
+    deltas = [round(0.72 * fold, 3), round(min(scene.rod.length, 1.15 * fold), 3)]
+    runs, results = [], []
+    for d in deltas:
+        sc = scene.with_overrides({"drop.wetted_length": d})
+        r = run_impact(sc)
+        reached = classify_final_state(bs, d, r.simulation.positions[-1])
+        runs.append(
+            {
+                "wetted_length": d,
+                "outcome": r.outcome,
+                "final_measure": r.final_measure,
+                "branch_reached": reached and reached["label"],
+                "t_end": r.t_end,
+                "wall_time_s": r.wall_time_s,
+            }
+        )
+        results.append(r)
+        strip = out / f"{scene.name}-impact-delta{d:g}.png"
+        frame_strip(r, sc, strip, k=8)
+        files.append(str(strip))
+        say(
+            f"  impact at Δ = {d:g}: {r.outcome} (M = {r.final_measure:+.4f}, reaches "
+            f"{reached and reached['label']}, {r.wall_time_s:.1f} s)"
+        )
+    from elastocap.overlay import plot_overlay
+
+    ov = out / f"{scene.name}-overlay.png"
+    plot_overlay(bs, runs, results, ov)
+    files.append(str(ov))
     if args.json:
-        rep = _fold_report(bs)
-        rep["files"] = [str(png)]
-        _print_json(rep)
+        _print_json({**_fold_report(bs), "impacts": runs, "files": files})
     else:
-        _print_folds(bs)
-        print(f"wrote {png}")
+        for f in files:
+            print(f"wrote {f}")
     return 0
 
 
@@ -272,6 +330,7 @@ COMMANDS: dict[str, tuple[Callable, str]] = {
     "branches": (cmd_branches, "trace every equilibrium branch; write .npz, JSON and a PNG"),
     "folds": (cmd_folds, "locate the folds (limit points); --check a reference file"),
     "impact": (cmd_impact, "run an impact to rest; its outcome and measures"),
+    "overlay": (cmd_overlay, "impacts drawn on the equilibria; which branch each reaches"),
     "figures": (cmd_figures, "regenerate the paper's figures"),
     "demo": (cmd_demo, "the quick-start tour on the default scene"),
 }
@@ -285,7 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(func=func)
         p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-        if name in ("show", "branches", "folds", "impact"):
+        if name in ("show", "branches", "folds", "impact", "overlay"):
             _scene_args(p)
         elif name == "demo":
             _scene_args(p, default=DEFAULT_SCENE)
@@ -303,7 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
                 metavar=("LO", "HI"),
                 help="parameter range (default: (0.02 L, L) for the wetted length)",
             )
-        if name in ("branches", "figures", "demo", "impact"):
+        if name in ("branches", "figures", "demo", "impact", "overlay"):
             p.add_argument("--out", metavar="DIR", help="output directory (default: out/...)")
         if name == "folds":
             p.add_argument(

@@ -9,7 +9,7 @@ from elastocap.impact import ImpactResult, _interface
 __all__ = ["frame_strip"]
 
 
-def _settle_time(times, measures, tol=0.02):
+def _settle_time(times, measures, tol=0.15):
     """First time after which the measure stays within ``tol`` of its final value."""
     far = np.flatnonzero(np.abs(measures - measures[-1]) > tol)
     if far.size == 0:
@@ -41,7 +41,7 @@ def frame_strip(
         The scene of the run (drop area, contact lines, events, ground).
     k : int
         Number of frames, spread over the motion: from t = 0 until the encapsulation
-        measure has settled within 0.02 of its final value (plus 20%).
+        measure has settled within 0.15 of its final value (plus 50%).
     crop : float, optional
         Show only the part of the rod within this arclength of the free end S = L (the
         paper shows "only a fraction of the strip"); default: the whole rod, or
@@ -60,7 +60,7 @@ def frame_strip(
     if crop is None and scene.effects.ground:
         crop = min(L, scene.distance_from_end + scene.drop.wetted_length + 2.0)
     keep = s_nodes >= (L - crop) if crop else np.ones(n + 1, bool)
-    t_show = min(times[-1], 1.2 * _settle_time(times, result.measure_history))
+    t_show = min(times[-1], 1.5 * _settle_time(times, result.measure_history))
     idx = _frame_indices(times, k, t_show)
     cap = np.array([scene.drop.area, scene.drop.s1, scene.drop.s2, scene.drop.line_tension])
     fired = list(sim.events_fired)

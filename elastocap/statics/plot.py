@@ -94,7 +94,7 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
             )
             first = False
     for f in bs.folds:
-        ax.plot(f["value"], f["measure"], "o", color="k", ms=6, zorder=5)
+        ax.plot(f["value"], f["measure"], "X", color="k", ms=7, zorder=5)
         ax.annotate(
             f"fold Δ={f['value']:.8f}",
             (f["value"], f["measure"]),

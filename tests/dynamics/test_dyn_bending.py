@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import rod_from_angles
+from dyn_helpers import rod_from_angles
 from hypothesis import given, settings
 from hypothesis import strategies as st
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import rod_from_angles
+from dyn_helpers import rod_from_angles
 
 from dynamics import Clamp, euler_bernoulli_omega, simulate
 from dynamics.reference import BETA_L
