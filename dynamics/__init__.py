@@ -6,7 +6,8 @@ Quick use::
 
     from dynamics import Rod, Gravity, Ground, simulate
     rod = Rod.straight(100, 4.6, mu=1.0, B=1.0)
-    res = simulate(rod, (Gravity(1.0), Ground()), dt=1e-3, t_end=10.0)
+    res = simulate(rod, (Gravity(1.0), Ground()), dt=5e-4, t_end=10.0)
+    res.positions  # (n_frames, 101, 2); res.energies["total"]; res.message
 """
 
 from .bending import bending_energy, bending_force_add, bending_gradient, discrete_curvature

@@ -35,6 +35,29 @@ Every effect is a small object with four attributes (the *effect protocol*):
 
 Built in: :class:`Gravity`, :class:`PointLoad`, :class:`DistributedLoad` (forces),
 :class:`Damping` (damping), :class:`Ground`, :class:`Clamp` (constraints).
+
+An external force effect, e.g. a drop with ``params = [area, s1, s2, gamma]``::
+
+    # mypkg/capillary.py  (module level, importable)
+    @numba.njit(cache=True)
+    def capillary_kernel(x, v, t, params, edge_len, mass, out_force):
+        area, s1, s2, gamma = params[0], params[1], params[2], params[3]
+        ...                       # out_force += -grad U
+        return U
+
+    class Capillary:              # or subclass dynamics.Effect
+        kind = "force"
+        param_names = ("area", "s1", "s2", "gamma")
+        kernel = capillary_kernel
+        def __init__(self, area, s1, s2, gamma, name="capillary"):
+            self.name = name
+            self.params = np.array([area, s1, s2, gamma], dtype=np.float64)
+
+    simulate(rod, (Capillary(1.0, 0.5, 2.0, 1.0), Damping(0.1)), dt=..., t_end=...,
+             events=(Event(2.0, "capillary", "s2", 2.4),))
+
+The stepper regenerates (and numba recompiles) its loop when the kernel's source file
+changes (its modification time and size are part of the generated module's hash).
 """
 
 from __future__ import annotations

@@ -26,10 +26,9 @@ a second process loads the compiled loop instead of compiling it.  An absent eff
 nothing, and all the steps between two output frames or events run inside one compiled
 call (no Python per step).  Measured (``benchmarks/dynamics_speed.py``, 200 edges):
 the generated bending-only stepper runs at 0.92-1.03x the time of a hand-written RATTLE
-loop with the same kernels (noise level); a force effect adds 0-2% (gravity, loads, an
-external kernel), damping 8%, a constraint effect (ground, clamp) ~37% (the projection
-is then always verified: with held coordinates Newton can converge only linearly); a
-Python call per step would add 3.1 us/step (1.6x at 100 edges).  Not chosen: a generic
+loop with the same kernels (noise level); a force effect adds 0-3% (gravity, loads, an
+external kernel), damping 12%, a constraint effect (ground, clamp) 4-5%; a Python call
+per step would add 3.1 us/step (1.6x at 100 edges).  Not chosen: a generic
 loop over a tuple of first-class functions (indirect calls, not cacheable by numba).
 Cold compile of one stepper ~7-15 s, warm load ~0.5 s.
 

@@ -402,6 +402,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (UsageError, SceneError, ValueError) as err:
         print(f"elastocap: error: {err}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into e.g. `head`: not an error of ours
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -28,7 +28,6 @@ import math
 import time
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from dynamics import Damping, Event, Ground, Rod, simulate
@@ -38,7 +37,7 @@ from elastocap._version import __version__
 from elastocap.capillary import Capillary
 from elastocap.drop import capillary_energy_and_gradient
 from elastocap.scene import Scene, SceneError
-from elastocap.statics.shape import arc_points
+from elastocap.statics.shape import arc_points, count_crossings
 
 __all__ = ["ImpactResult", "impact_settings", "run_impact", "turning_measure"]
 
@@ -63,31 +62,6 @@ def turning_measure(x: np.ndarray) -> float:
     cross = e[:-1, 0] * e[1:, 1] - e[:-1, 1] * e[1:, 0]
     dot = np.sum(e[:-1] * e[1:], axis=1)
     return float(np.sum(np.arctan2(cross, dot)) / math.pi)
-
-
-@numba.njit(cache=True)
-def _count_crossings(a, b, same, skip_a0, skip_a1):
-    """Proper crossings of polyline segments a (m, 2) with b (k, 2); with ``same`` a is b and
-    adjacent segments are skipped; segments of a with index < skip_a0 or >= skip_a1 are not
-    tested."""
-    count = 0
-    for i in range(max(skip_a0, 0), min(a.shape[0] - 1, skip_a1)):
-        ax, az = a[i, 0], a[i, 1]
-        rx, rz = a[i + 1, 0] - ax, a[i + 1, 1] - az
-        j0 = i + 2 if same else 0
-        for j in range(j0, b.shape[0] - 1):
-            bx, bz = b[j, 0], b[j, 1]
-            sx, sz = b[j + 1, 0] - bx, b[j + 1, 1] - bz
-            den = rx * sz - rz * sx
-            if den == 0.0:
-                continue
-            qx, qz = bx - ax, bz - az
-            t = (qx * sz - qz * sx) / den
-            u = (qx * rz - qz * rx) / den
-            # 1e-9: segments touching at an end point do not count
-            if 1e-9 < t < 1.0 - 1e-9 and 1e-9 < u < 1.0 - 1e-9:
-                count += 1
-    return count
 
 
 def _interface(x, s_nodes, area, s1, s2, gamma):
@@ -225,12 +199,12 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
         while fired and fired[0][0] <= tk + 1e-12:
             _, _, j, val = fired.pop(0)
             cap[j] = val
-        if rod_t is None and _count_crossings(pos, pos, True, 0, n) > 0:
+        if rod_t is None and count_crossings(pos, pos, True, 0, n) > 0:
             rod_t = float(tk)
         if if_t is None and k > 0:
             iface, _tau = _interface(pos, s_nodes, cap[0], cap[1], cap[2], cap[3])
             m = iface.shape[0]
-            if _count_crossings(iface, pos, False, 1, m - 2) > 0:
+            if count_crossings(iface, pos, False, 1, m - 2) > 0:
                 if_t = float(tk)
     final = sim.positions[-1]
     M = float(measures[-1])

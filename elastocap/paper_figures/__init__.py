@@ -13,6 +13,9 @@ from pathlib import Path
 #: figure name -> module (relative to this package)
 FIGURES = {
     "supp-fig6": "supp_fig6",
+    "bistability": "bistability",
+    "supp-fig5": "supp_fig5",
+    "overlay": "overlay",
 }
 
 

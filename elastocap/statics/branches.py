@@ -42,14 +42,18 @@ __all__ = [
 ]
 
 #: LGL intervals on the wet part per accuracy preset. Measured on supp-fig5 (README,
-#: "Statics accuracy"): fold error ~1e-5 at N = 12, ~1e-12 at N = 24, round-off at N = 40.
-ACCURACY_N = {"draft": 12, "default": 24, "publication": 40}
+#: "Statics accuracy"): fold error 1.4e-9 at N = 16, 2e-14 at N = 24, round-off at N = 40.
+#: (N = 12 reaches 5e-7 on the fold but finds a spurious fold on the inadmissible inverted
+#: branch, which a finer resolution does not confirm: 16 is the smallest safe draft.)
+ACCURACY_N = {"draft": 16, "default": 24, "publication": 40}
 # Contact lines closer than this fraction of Delta end a branch: the chord direction, and so
 # the cap, is undefined when they meet.
 _CHORD_STOP = 1e-3
 # Grid values used by the search, and the seed family (see module docstring).
-_SEARCH_GRID = 5
-_SEED_TURNS = np.linspace(-2.5, 2.5, 11)
+# 4 values x 14 seeds finds all 5 branches of supp-fig5; the tests check that 11 values x 63
+# seeds find nothing more (and the README quotes the timing of the default).
+_SEARCH_GRID = 4
+_SEED_TURNS = tuple(np.linspace(-2.4, 2.4, 7))
 _SEED_ASYM = (0.0, 0.8)
 
 
@@ -107,7 +111,7 @@ def newton(problem, u, p, tol=1e-11, max_iter=40, deflate=(), max_step=0.5):
     u = np.array(u, dtype=float)
     n_th = problem.N + 1
     r_first = None
-    for _ in range(max_iter):
+    for it in range(max_iter):
         with np.errstate(all="ignore"):
             r = problem.residual(u, p)
         if not np.all(np.isfinite(r)):
@@ -116,8 +120,9 @@ def newton(problem, u, p, tol=1e-11, max_iter=40, deflate=(), max_step=0.5):
         if rn <= tol:
             return u
         r_first = rn if r_first is None else r_first
-        # a residual 1e6 times the first one: diverging (a seed far from any solution)
-        if rn > 1e6 * r_first:
+        # a residual 1e6 times the first one: diverging (a seed far from any solution); no
+        # decrease by half after 12 damped iterations: wandering (deflation pushed it off)
+        if rn > 1e6 * r_first or (it >= 12 and rn > 0.5 * r_first):
             return None
         try:
             du = np.linalg.solve(problem.jacobian(u, p), -r)
@@ -244,11 +249,11 @@ def _settings(scene: Scene, lo: float, hi: float, span: float) -> ContinuationSe
     )
 
 
-def _seeds(problem):
+def _seeds(problem, turns=_SEED_TURNS, asym=_SEED_ASYM):
     xi = problem.xi
     out = []
-    for m in _SEED_TURNS:
-        for b in _SEED_ASYM:
+    for m in turns:
+        for b in asym:
             th = 0.5 * math.pi * m * xi + b * (xi * xi - 1.0 / 3.0)
             out.append(np.concatenate([th, [0.0]]))
     return out
@@ -267,6 +272,8 @@ def trace_branches(
     N: int | None = None,
     nodes: str = "lgl",
     grid: int = _SEARCH_GRID,
+    seed_turns=_SEED_TURNS,
+    seed_asymmetries=_SEED_ASYM,
     error_estimates: bool = True,
 ) -> BranchSet:
     """Every equilibrium branch of ``scene`` in ``parameter`` over ``prange``.
@@ -284,6 +291,8 @@ def trace_branches(
         LGL intervals on the wet part (default from ``numerics``).
     grid : int
         Number of parameter values of the search.
+    seed_turns, seed_asymmetries : sequences of float
+        Seed shapes: total turning M pi (M in seed_turns) plus b (xi^2 - 1/3) asymmetry.
     error_estimates : bool
         Relocate each fold at a finer resolution to estimate its discretization error.
 
@@ -347,7 +356,7 @@ def trace_branches(
         trace(u_flat, p_start, "primary")
     # 2. deflated seeds on the grid
     for k, pk in enumerate(grid_p):
-        for seed in _seeds(problem):
+        for seed in _seeds(problem, seed_turns, seed_asymmetries):
             problem.set(parameter, pk)
             # 25 iterations: converging seeds need < 15 (angles move <= 0.5 rad each)
             u = newton(problem, seed, pk, settings.newton_tol, max_iter=25, deflate=known[k])
@@ -379,7 +388,7 @@ def trace_branches(
         "newton_tol": settings.newton_tol,
         "locate_tol": settings.locate_tol,
         "search_grid": [float(v) for v in grid_p],
-        "seeds": len(_seeds(problem)),
+        "seeds": len(seed_turns) * len(seed_asymmetries),
         # the dry arms are straight and unloaded: these keys only move them
         "equilibrium_independent_of_parameter": parameter
         in ("rod.length", "drop.center", "drop.distance_from_end"),

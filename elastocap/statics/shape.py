@@ -14,13 +14,14 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 __all__ = [
     "arc_points",
     "full_shape",
     "measures",
-    "polyline_crossings",
+    "count_crossings",
     "encapsulation_measure",
 ]
 
@@ -95,43 +96,31 @@ def full_shape(problem, u, p=None, n_wet=_N_WET_SAMPLES):
     return {"rod": rod, "s": s, "interface": iface}
 
 
-def polyline_crossings(a, b=None, skip_adjacent=1, exclude_a=(), exclude_b=()):
-    """Number of proper crossings between segments of polylines a and b (a with itself if
-    b is None, ignoring segments within ``skip_adjacent`` of each other).
+@numba.njit(cache=True)
+def count_crossings(a, b, same, skip_a0, skip_a1):
+    """Proper crossings of the segments of polyline a (m, 2) with those of b (k, 2).
 
-    Parameters
-    ----------
-    a, b : ndarray (m, 2)
-    exclude_a, exclude_b : iterable of int
-        Segment indices not tested (e.g. those touching a contact point).
+    With ``same`` (a is b) adjacent segments are not tested; segments of a with index below
+    ``skip_a0`` or from ``skip_a1`` on are skipped (e.g. the ends of an interface that start
+    on the rod). Touching end points (within 1e-9 of a segment's length) do not count.
     """
-    pa, qa = a[:-1], a[1:]
-    same = b is None
-    if same:
-        b = a
-    pb, qb = b[:-1], b[1:]
-    ra = qa - pa
-    rb = qb - pb
-
-    def cross(u, v):
-        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
-
-    den = cross(ra[:, None, :], rb[None, :, :])
-    diff = pb[None, :, :] - pa[:, None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = cross(diff, rb[None, :, :]) / den
-        w = cross(diff, ra[:, None, :]) / den
-    # strictly inside both segments (1e-9: touching end points are not crossings)
-    eps = 1e-9
-    hit = (den != 0.0) & (t > eps) & (t < 1 - eps) & (w > eps) & (w < 1 - eps)
-    if same:
-        i, j = np.indices(hit.shape)
-        hit &= j > i + skip_adjacent
-    for k in exclude_a:
-        hit[k, :] = False
-    for k in exclude_b:
-        hit[:, k] = False
-    return int(hit.sum())
+    count = 0
+    for i in range(max(skip_a0, 0), min(a.shape[0] - 1, skip_a1)):
+        ax, az = a[i, 0], a[i, 1]
+        rx, rz = a[i + 1, 0] - ax, a[i + 1, 1] - az
+        j0 = i + 2 if same else 0
+        for j in range(j0, b.shape[0] - 1):
+            bx, bz = b[j, 0], b[j, 1]
+            sx, sz = b[j + 1, 0] - bx, b[j + 1, 1] - bz
+            den = rx * sz - rz * sx
+            if den == 0.0:
+                continue
+            qx, qz = bx - ax, bz - az
+            t = (qx * sz - qz * sx) / den
+            u = (qx * rz - qz * rx) / den
+            if 1e-9 < t < 1.0 - 1e-9 and 1e-9 < u < 1.0 - 1e-9:
+                count += 1
+    return count
 
 
 def measures(problem, u, p=None) -> dict[str, float]:
@@ -151,10 +140,9 @@ def measures(problem, u, p=None) -> dict[str, float]:
     shp = full_shape(problem, u)
     rod = shp["rod"]
     iface = shp["interface"]
-    rod_x = polyline_crossings(rod, skip_adjacent=1)
-    # the interface starts and ends on the rod: skip its first/last segment
-    n_if = len(iface) - 1
-    if_x = polyline_crossings(iface, rod, exclude_a=(0, n_if - 1))
+    rod_x = count_crossings(rod, rod, True, 0, len(rod))
+    # the interface starts and ends on the rod: skip its first and last segments
+    if_x = count_crossings(iface, rod, False, 1, len(iface) - 2)
     L = problem.params["L"]
     end = float(np.hypot(*(rod[-1] - rod[0])))
     adm = float(rod_x == 0 and if_x == 0 and abs(S.tau) < math.pi)

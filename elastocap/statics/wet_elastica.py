@@ -248,8 +248,8 @@ class WetElasticaProblem(Problem):
         Q = h * self.Qh
         w = h * self.wh
         # Hessian of A0 (symmetric): 1/2 w_i Q_ij sin(th_i - th_j) + transpose + diagonal
-        sdiff = np.sin(th[:, None] - th[None, :])
-        M = 0.5 * (w[:, None] * Q) * sdiff
+        # sin(th_i - th_j) = s_i c_j - c_i s_j: two outer products instead of N^2 sines
+        M = 0.5 * (w[:, None] * Q) * (np.multiply.outer(s, c) - np.multiply.outer(c, s))
         H_a0 = M + M.T
         wc, ws = w * c, w * s
         diag = 0.5 * (s * (wc @ Q) - c * (ws @ Q)) + 0.5 * w * (z * c - x * s)

@@ -1,0 +1,35 @@
+"""Bistability map of supp-fig5: the fold in Delta continued in the drop area A."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from elastocap.scene import load_scene
+from elastocap.statics.bistability import fold_curves, plot_bistability
+
+
+def main(out_dir, fast: bool = False) -> list[Path]:
+    """Writes ``bistability.png`` and ``bistability.json`` (the fold curve A -> Delta)."""
+    out = Path(out_dir)
+    scene = load_scene("supp-fig5", {"numerics.accuracy": "draft"} if fast else None)
+    bs, curves = fold_curves(scene, "drop.area", (0.2, 3.0), ds_max=0.1 if fast else 0.05)
+    png = out / "bistability.png"
+    plot_bistability(scene, bs, curves, "drop.area", png)
+    js = out / "bistability.json"
+    js.write_text(
+        json.dumps(
+            {
+                "curves": [
+                    {
+                        "area": c.p.tolist(),
+                        "delta": c.observables["p"].tolist(),
+                        "extrema": [[float(sp.p), float(sp.u[-1])] for sp in c.folds],
+                    }
+                    for c in curves
+                ]
+            },
+            indent=1,
+        )
+    )
+    return [png, js]

@@ -1,0 +1,214 @@
+"""``elastocap sweep``: a phase diagram of impacts, resumable, on a local pool or a cluster.
+
+``add_arguments(parser)`` registers the options on the subcommand's parser; ``run(args)``
+runs it and returns the exit code (0; 1 if some runs raised). Bad input raises
+:class:`~elastocap.scene.SceneError` or :class:`ValueError` naming the option, the value and
+what is allowed, before anything is written (the command maps them to exit code 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from elastocap.scene import SceneError, load_scene, parse_override
+
+__all__ = ["add_arguments", "run"]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``elastocap sweep`` (the caller adds ``--json``)."""
+    parser.add_argument("scene", help="built-in scene name or path to a TOML file")
+    parser.add_argument(
+        "--x",
+        required=True,
+        metavar="LO:HI:N",
+        help="distances from the free end, in units of l_eg (scene units "
+        "without gravity): N values from LO to HI",
+    )
+    grp = parser.add_mutually_exclusive_group(required=True)
+    grp.add_argument(
+        "--we",
+        metavar="LO:HI:N",
+        help="We^1/2 values (converted to Delta by the scene's spreading law)",
+    )
+    grp.add_argument(
+        "--delta", metavar="LO:HI:N", help="wetted lengths Delta (scene units), instead of --we"
+    )
+    parser.add_argument(
+        "--store",
+        metavar="FILE",
+        help="SQLite result store, shared and resumable (default: OUT/sweep.sqlite)",
+    )
+    parser.add_argument(
+        "--workers", type=int, metavar="N", help="local worker processes (default: one per core)"
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run on a dask cluster, e.g. tcp://10.0.0.1:8786 (needs the 'distributed' extra)",
+    )
+    parser.add_argument(
+        "--refine",
+        type=float,
+        metavar="TOL",
+        help="bisect the boundary on each x line to a bracket narrower than "
+        "TOL (in We^1/2, or Delta with --delta)",
+    )
+    parser.add_argument("--out", metavar="DIR", help="output directory (default: out/sweep-SCENE)")
+    parser.add_argument(
+        "--experiments",
+        metavar="CSV",
+        help="experimental points for the plot (columns x_over_leg, we_sqrt, outcome)",
+    )
+    parser.add_argument(
+        "--progress",
+        choices=("auto", "none", "text", "tqdm"),
+        default="auto",
+        help="progress on stderr (default: tqdm if installed)",
+    )
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scene key, e.g. --set numerics.accuracy=draft",
+    )
+
+
+def _jsonable(obj):
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return str(obj)
+    if isinstance(obj, dict):
+        return {k: _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    return obj
+
+
+def _validate(args):
+    """Everything that can be refused, refused before any file is touched."""
+    from elastocap.sweep.engine import SWEPT_KEYS
+    from elastocap.sweep.executors import MissingExtraError, check_scheduler, check_workers
+    from elastocap.sweep.grid import parse_range
+    from elastocap.sweep.plot import load_experiments
+
+    xs = parse_range(args.x, "--x")
+    we = parse_range(args.we, "--we") if args.we is not None else None
+    delta = parse_range(args.delta, "--delta") if args.delta is not None else None
+    for text in args.overrides:
+        key, value = parse_override(text)
+        if key in SWEPT_KEYS:
+            raise SceneError(
+                key, value, "set by the sweep on every point (--x, --we/--delta); remove this --set"
+            )
+    scene = load_scene(args.scene, args.overrides)
+    if "experiment" in scene.data:
+        raise SceneError(
+            "scene",
+            args.scene,
+            "an [experiment] scene fixes x and Delta through "
+            "its SI inputs; sweep a dimensionless scene such as fig3-strip",
+        )
+    if we is not None and scene.spreading is None:
+        raise ValueError(
+            f"--we: got {args.we!r}; scene {scene.name!r} has no [spreading] law "
+            "to convert We^1/2 to Delta; use --delta"
+        )
+    if args.workers is not None:
+        check_workers(args.workers)
+    if args.scheduler is not None:
+        try:
+            check_scheduler(args.scheduler)
+        except MissingExtraError as err:
+            raise ValueError(str(err)) from None
+    if args.refine is not None and not (args.refine > 0 and math.isfinite(args.refine)):
+        raise ValueError(f"--refine: got {args.refine!r}; expected a finite number > 0")
+    experiments = load_experiments(args.experiments) if args.experiments else None
+    return scene, xs, we, delta, experiments
+
+
+def _print_text(rep: dict, files: list[str]) -> None:
+    c = rep["counts"]
+    var = "We^1/2" if rep["variable"] == "we_sqrt" else "Delta"
+    print(
+        f"{rep['scene']}: {c['runs']} runs ({c['computed']} computed, {c['cached']} from the "
+        f"store), {c['skipped']} skipped, {c['failed']} failed, {c['disagreements']} where "
+        f"the criteria disagree; {rep['wall_time_s']:.1f} s on {rep['executor']}"
+    )
+    for s in rep["skipped"][:5]:
+        print(
+            f"  skipped x = {s['x_over_leg']:.6g}, Delta = {s['wetted_length']:.6g}: {s['reason']}"
+        )
+    if c["skipped"] > 5:
+        print(f"  ... {c['skipped'] - 5} more skipped (see --json)")
+    for f in rep["failed"]:
+        print(f"  FAILED x = {f['x_over_leg']:.6g}, Delta = {f['wetted_length']:.6g}: {f['error']}")
+    print(f"boundary in {var} (x in {rep['x_unit']}):")
+    for b in rep["boundary"]:
+        lo, hi = b["low"], b["high"]
+        br = (
+            f"[{lo:.6g}, {hi:.6g}]"
+            if lo is not None and hi is not None
+            else f"below {hi:.6g}"
+            if hi is not None
+            else f"above {lo:.6g}"
+            if lo is not None
+            else "-"
+        )
+        extra = ""
+        if b["status"] == "non-monotonic":
+            extra = "  changes at " + ", ".join(
+                f"[{t['low']:.6g}, {t['high']:.6g}] {t['outcome_low']}->{t['outcome_high']}"
+                for t in b["transitions"]
+            )
+        print(f"  x = {b['x']:<8.6g} {b['status']:<17} {br}{extra}")
+    for f in files:
+        print(f"wrote {f}")
+
+
+def run(args) -> int:
+    """Run ``elastocap sweep``; return 0, or 1 when some runs raised (reported)."""
+    from elastocap.sweep.engine import run_sweep
+    from elastocap.sweep.plot import plot_phase_diagram
+    from elastocap.sweep.progress import make_progress
+
+    scene, xs, we, delta, experiments = _validate(args)
+    out = Path(args.out) if args.out else Path("out") / f"sweep-{scene.name}"
+    store = Path(args.store) if args.store else out / "sweep.sqlite"
+    progress = make_progress(args.progress)
+    result = run_sweep(
+        scene,
+        xs,
+        we_sqrts=we,
+        deltas=delta,
+        store=store,
+        refine_tol=args.refine,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=progress,
+    )
+    rep = _jsonable(result.to_dict())
+    out.mkdir(parents=True, exist_ok=True)
+    png = out / "phase-diagram.png"
+    plot_phase_diagram(rep, png, experiments=experiments)
+    js = out / "sweep.json"
+    files = [str(store), str(js), str(png)]
+    rep["files"] = files
+    js.write_text(json.dumps(rep, indent=1))
+    if getattr(args, "json", False):
+        print(json.dumps(rep, indent=1))
+    else:
+        _print_text(rep, files)
+    if rep["failed"]:
+        print(
+            f"elastocap: {len(rep['failed'])} runs raised; they are not stored and will be "
+            "retried by the next run of the same sweep",
+            file=sys.stderr,
+        )
+        return 1
+    return 0

@@ -1,0 +1,142 @@
+"""Executors for sweeps, all :class:`concurrent.futures.Executor`.
+
+* Local (default): a spawn-context :class:`~concurrent.futures.ProcessPoolExecutor`, one
+  worker per core, each worker with one numba thread and one BLAS thread (the runs are the
+  parallelism; threads inside a worker would only compete for the same cores). Spawn, not
+  fork: numba's and the BLAS thread pools are not fork-safe.
+* Cluster: ``scheduler="tcp://host:8786"`` -> ``dask.distributed.Client(address)
+  .get_executor()``; dask is imported only then (the ``distributed`` extra). Start dask
+  workers with ``--nthreads 1`` and ``NUMBA_NUM_THREADS=1`` in their environment.
+
+Workers only compute and return plain data; the process running the sweep writes the store.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import sys
+from concurrent.futures import Executor, ProcessPoolExecutor
+from dataclasses import dataclass
+
+__all__ = ["MissingExtraError", "SweepExecutor", "open_executor", "worker_info"]
+
+#: Environment of a local worker: one thread for numba's parallel layer and for BLAS.
+WORKER_ENV = {
+    "NUMBA_NUM_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+}
+#: Futures kept in flight per worker slot: 2 keeps every worker fed while the sweep writes
+#: results, and bounds what a killed sweep loses to the runs actually executing.
+IN_FLIGHT_PER_SLOT = 2
+
+
+class MissingExtraError(ImportError):
+    """An optional dependency is missing; the message names the extra to install."""
+
+
+def _init_worker() -> None:
+    """Initializer of a local worker: runs before any task, so before numba is imported by
+    elastocap's run function."""
+    os.environ.update(WORKER_ENV)
+    if "numba" in sys.modules:  # the parent's main script imported it at top level
+        import numba
+
+        numba.set_num_threads(1)
+
+
+def worker_info() -> dict:
+    """Thread settings seen inside a worker (for tests and ``--workers`` diagnostics)."""
+    import numba
+
+    return {
+        "pid": os.getpid(),
+        "NUMBA_NUM_THREADS": os.environ.get("NUMBA_NUM_THREADS"),
+        "numba_threads": int(numba.get_num_threads()),
+    }
+
+
+@dataclass
+class SweepExecutor:
+    """An executor and how many runs to keep in flight on it.
+
+    Attributes
+    ----------
+    executor : concurrent.futures.Executor
+    slots : int
+        Parallel workers (threads) behind it.
+    description : str
+        For messages, e.g. "local pool, 2 workers".
+    """
+
+    executor: Executor
+    slots: int
+    description: str
+
+    @property
+    def max_in_flight(self) -> int:
+        return max(1, IN_FLIGHT_PER_SLOT * self.slots)
+
+
+def check_workers(workers) -> int:
+    """``workers`` as an integer >= 1 (None = one per core)."""
+    if workers is None:
+        return os.cpu_count() or 1
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"--workers: got {workers!r}; expected an integer >= 1")
+    return workers
+
+
+def check_scheduler(address: str) -> None:
+    """Refuse a malformed address, and a missing dask.distributed, before any work."""
+    if not isinstance(address, str) or "://" not in address:
+        raise ValueError(
+            f"--scheduler: got {address!r}; expected a dask scheduler address "
+            "such as tcp://127.0.0.1:8786"
+        )
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise MissingExtraError(
+            f"--scheduler {address}: needs dask.distributed, which is not installed; "
+            "install the extra: pip install 'elastocap[distributed]'"
+        ) from None
+
+
+@contextlib.contextmanager
+def open_executor(workers: int | None = None, scheduler: str | None = None):
+    """Yield a :class:`SweepExecutor`; shut it down (or disconnect) on exit.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Local worker processes (default: one per core). Ignored with ``scheduler``.
+    scheduler : str, optional
+        A dask scheduler address (``tcp://...``): run on that cluster.
+    """
+    if scheduler is not None:
+        check_scheduler(scheduler)
+        from distributed import Client
+
+        client = Client(scheduler)
+        try:
+            slots = max(1, sum(client.nthreads().values()))
+            yield SweepExecutor(
+                client.get_executor(), slots, f"dask cluster {scheduler}, {slots} worker threads"
+            )
+        finally:
+            client.close()
+        return
+    n = check_workers(workers)
+    pool = ProcessPoolExecutor(
+        max_workers=n,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_init_worker,
+    )
+    try:
+        yield SweepExecutor(pool, n, f"local pool, {n} worker{'s' * (n != 1)}")
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)

@@ -1,0 +1,59 @@
+"""Every paper figure runs in fast mode and reproduces its key number (they cannot rot)."""
+
+import json
+
+import pytest
+
+from elastocap.cli import main
+from elastocap.paper_figures import FIGURES, run_figures
+
+
+@pytest.fixture(scope="module")
+def figs(tmp_path_factory):
+    out = tmp_path_factory.mktemp("figs")
+    return out, run_figures(out, fast=True)
+
+
+def test_every_figure_writes_its_files(figs):
+    out, written = figs
+    assert set(written) == set(FIGURES)
+    for paths in written.values():
+        for p in paths:
+            assert p.stat().st_size > 200
+
+
+def test_supp_fig6_fold(figs):
+    out, _ = figs
+    folds = json.loads((out / "supp-fig6.json").read_text())["folds"]
+    # draft resolution (16 LGL intervals): fold error 1.4e-9 (README convergence table)
+    assert len(folds) == 1 and folds[0]["value"] == pytest.approx(3.46979475157, abs=5e-9)
+
+
+def test_bistability_curve_passes_through_the_fold(figs):
+    out, _ = figs
+    (curve,) = json.loads((out / "bistability.json").read_text())["curves"]
+    import numpy as np
+
+    a, d = np.array(curve["area"]), np.array(curve["delta"])
+    # on the lower half (before the first extremum of A) Delta(A = 1.5) is the fold of supp-fig5
+    k = int(np.argmax(a))
+    assert np.interp(1.5, a[: k + 1], d[: k + 1]) == pytest.approx(3.4698, abs=2e-3)
+    assert max(a) == pytest.approx(1.7449, abs=2e-3)  # the cusp
+
+
+def test_supp_fig5_outcomes(figs):
+    out, _ = figs
+    s = json.loads((out / "supp-fig5.json").read_text())
+    assert s["a"]["outcome"] == "open" and s["b"]["outcome"] == "encapsulated"
+
+
+def test_overlay_branch_reached(figs):
+    out, _ = figs
+    runs = json.loads((out / "overlay.json").read_text())
+    assert [r["branch_reached"] for r in runs][0] == "primary"
+    assert runs[-1]["outcome"] == "encapsulated" and runs[-1]["branch_reached"] != "primary"
+
+
+def test_figures_cli_rejects_unknown_name(capsys):
+    assert main(["figures", "--only", "fig99"]) == 2
+    assert "expected one of" in capsys.readouterr().err
