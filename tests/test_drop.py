@@ -20,11 +20,19 @@ from elastocap.drop import (
     wet_polygon_area,
 )
 
-mp.mp.dps = 60
-
-
 def _ref_cap(a1, d):
     """phi, r, lambda in 60-digit arithmetic by bracketed root finding (no shared code)."""
+    # a local precision: other test modules set mpmath's global precision too
+    with mp.workdps(60):
+        return _ref_cap_60(a1, d)
+
+
+def _rel(a, b):
+    with mp.workdps(60):
+        return float(abs((mp.mpf(a) - b) / b))
+
+
+def _ref_cap_60(a1, d):
     a1 = mp.mpf(a1)
     d = mp.mpf(d)
     a = abs(a1) / d**2
@@ -63,10 +71,6 @@ def _ref_cap(a1, d):
     r = sgn * d / (2 * sin_t)
     lam = 2 * t * d / (2 * sin_t)
     return phi, r, lam
-
-
-def _rel(a, b):
-    return float(abs((mp.mpf(a) - b) / b))
 
 
 # The whole range the model must cover: |A1|/d^2 from 1e-12 to 1e12 with either sign, and
