@@ -20,6 +20,7 @@ from elastocap.drop import (
     wet_polygon_area,
 )
 
+
 def _ref_cap(a1, d):
     """phi, r, lambda in 60-digit arithmetic by bracketed root finding (no shared code)."""
     # a local precision: other test modules set mpmath's global precision too
