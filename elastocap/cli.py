@@ -55,6 +55,19 @@ def _scene_args(p: argparse.ArgumentParser, default: str | None = None) -> None:
         metavar="KEY=VALUE",
         help="override a scene key, e.g. --set drop.area=1.0 (repeatable)",
     )
+    p.add_argument(
+        "--accuracy",
+        choices=("draft", "default", "publication"),
+        help="resolution and tolerance preset (same as --set numerics.accuracy=...)",
+    )
+
+
+def _load(args):
+    """The scene of a command: name or path, --set overrides, --accuracy."""
+    over = list(args.overrides)
+    if getattr(args, "accuracy", None):
+        over.append(f"numerics.accuracy={args.accuracy}")
+    return load_scene(args.scene, over)
 
 
 def _fmt_block(title: str, d: dict, indent: int = 2) -> list[str]:
@@ -83,7 +96,7 @@ def cmd_scenes(args) -> int:
 
 
 def cmd_show(args) -> int:
-    scene = load_scene(args.scene, args.overrides)
+    scene = _load(args)
     summary = scene.summary()
     summary["version"] = __version__
     if args.json:
@@ -105,7 +118,7 @@ def _out_dir(args, default_name: str) -> Path:
 def _trace(args):
     from elastocap.statics.branches import trace_branches
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = _load(args)
     prange = tuple(args.range) if args.range else None
     return trace_branches(scene, args.param, prange)
 
@@ -190,7 +203,7 @@ def cmd_folds(args) -> int:
 def cmd_impact(args) -> int:
     from elastocap.impact import run_impact
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = _load(args)
     if args.frames is not None and args.frames < 2:
         raise UsageError(f"--frames: got {args.frames}; expected an integer >= 2")
     res = run_impact(scene)
@@ -244,7 +257,7 @@ def cmd_figures(args) -> int:
 def cmd_overlay(args) -> int:
     from elastocap.overlay import parse_range, run_overlay
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = _load(args)
     deltas = parse_range(args.delta, "--delta")
     if deltas.max() > scene.rod.length:
         raise UsageError(
@@ -276,7 +289,7 @@ def cmd_demo(args) -> int:
     from elastocap.statics.branches import trace_branches
     from elastocap.statics.plot import plot_branch_set
 
-    scene = load_scene(args.scene, args.overrides)
+    scene = _load(args)
     out = _out_dir(args, "demo")
     out.mkdir(parents=True, exist_ok=True)
     say = (lambda *a: None) if args.json else print
