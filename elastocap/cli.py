@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from elastocap._version import __version__
+from elastocap.jsonutil import jsonable
 from elastocap.scene import SceneError, builtin_scene_names, load_scene
 
 DEFAULT_SCENE = "supp-fig5"
@@ -28,18 +29,8 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def _jsonable(obj):
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return str(obj)
-    if isinstance(obj, dict):
-        return {k: _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    return obj
-
-
 def _print_json(obj) -> None:
-    print(json.dumps(_jsonable(obj), indent=2, sort_keys=False))
+    print(json.dumps(jsonable(obj), indent=2, sort_keys=False))
 
 
 def _scene_args(p: argparse.ArgumentParser, default: str | None = None) -> None:
@@ -216,7 +207,7 @@ def cmd_impact(args) -> int:
         npz = out / f"impact-{scene.name}.npz"
         res.simulation.save_npz(npz)
         meta = {**rep, "scene": scene.data}
-        (out / f"impact-{scene.name}.json").write_text(json.dumps(_jsonable(meta), indent=2))
+        (out / f"impact-{scene.name}.json").write_text(json.dumps(jsonable(meta), indent=2))
         png = out / f"impact-{scene.name}-frames.png"
         frame_strip(res, scene, png, k=args.frames or 8)
         rep["files"] = [str(npz), str(out / f"impact-{scene.name}.json"), str(png)]
