@@ -227,6 +227,9 @@ def cmd_impact(args) -> int:
             )
         for f in rep.get("files", []):
             print(f"  wrote {f}")
+    if res.outcome == "failed":  # a numerical failure: diagnosed, exit 1 (not bad input)
+        print(f"elastocap: impact failed: {res.message}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -11,6 +11,8 @@ Outcome
 * Scenes with gravity or a ground (the strip of Fig 3): the paper's criterion (Methods):
   encapsulated when the free end S = L ends to the left of the impact centre S = L - x,
   x(L) < x(L - x_impact) in the lab frame.
+* A run that fails numerically (the projection does not converge, a non-finite state) has
+  outcome ``"failed"`` and a message saying where and what to try, never a guessed outcome.
 * The free rod without gravity (supp-fig5): encapsulated when the encapsulation measure
   M = (theta(L) - theta(0)) / pi exceeds 1 (the two ends have turned past antiparallel: the
   rod closes round the drop). For supp-fig5 every stable equilibrium of the flat family has
@@ -219,15 +221,30 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
         enc = M > 1.0
     t_end = float(sim.t_final)
     crossed = [t for t in (rod_t, if_t) if t is not None]
+    outcome = "encapsulated" if enc else "open"
+    message = sim.message
+    if not sim.success:
+        # a failed run has no outcome: say what failed, and whether the contact lines met
+        outcome = "failed"
+        d = float(np.hypot(*(np.array([np.interp(cap[2], s_nodes, final[:, 0]),
+                                       np.interp(cap[2], s_nodes, final[:, 1])])
+                             - np.array([np.interp(cap[1], s_nodes, final[:, 0]),
+                                         np.interp(cap[1], s_nodes, final[:, 1])]))))
+        if d < 0.05 * (cap[2] - cap[1]):
+            message += (f" At the last frame the contact lines are {d:.3g} apart (Delta = "
+                        f"{cap[2] - cap[1]:.3g}): the drop is closing inside the wrap, where "
+                        "the circular-cap model is singular (chord -> 0); the outcome up to "
+                        "then was encapsulation-bound. Try a smaller numerics.dt or a larger "
+                        "numerics.n_edges, or read it as a closed wrap.")
     return ImpactResult(
-        outcome="encapsulated" if enc else "open",
+        outcome=outcome,
         criterion=criterion,
         final_measure=M,
         t_end=t_end,
         steps=int(sim.steps),
         wall_time_s=time.perf_counter() - t0,
         status=sim.status,
-        message=sim.message,
+        message=message,
         end_position=x_end,
         impact_position=x_imp,
         rod_crossing_time=rod_t,
