@@ -96,6 +96,7 @@ def _validate(args):
     from elastocap.sweep.executors import MissingExtraError, check_scheduler, check_workers
     from elastocap.sweep.grid import parse_range
     from elastocap.sweep.plot import load_experiments
+    from elastocap.sweep.store import ResultStore, StoreError
 
     xs = parse_range(args.x, "--x")
     we = parse_range(args.we, "--we") if args.we is not None else None
@@ -129,7 +130,13 @@ def _validate(args):
     if args.refine is not None and not (args.refine > 0 and math.isfinite(args.refine)):
         raise ValueError(f"--refine: got {args.refine!r}; expected a finite number > 0")
     experiments = load_experiments(args.experiments) if args.experiments else None
-    return scene, xs, we, delta, experiments
+    out = Path(args.out) if args.out else Path("out") / f"sweep-{scene.name}"
+    store = Path(args.store) if args.store else out / "sweep.sqlite"
+    try:
+        ResultStore.check(store)
+    except StoreError as err:
+        raise ValueError(f"--store: {err}") from None
+    return scene, xs, we, delta, experiments, out, store
 
 
 def _print_text(rep: dict, files: list[str]) -> None:
@@ -177,9 +184,7 @@ def run(args) -> int:
     from elastocap.sweep.plot import plot_phase_diagram
     from elastocap.sweep.progress import make_progress
 
-    scene, xs, we, delta, experiments = _validate(args)
-    out = Path(args.out) if args.out else Path("out") / f"sweep-{scene.name}"
-    store = Path(args.store) if args.store else out / "sweep.sqlite"
+    scene, xs, we, delta, experiments, out, store = _validate(args)
     progress = make_progress(args.progress)
     result = run_sweep(
         scene,

@@ -15,6 +15,7 @@ its earlier runs in the store.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from concurrent.futures import FIRST_COMPLETED, Executor, wait
@@ -196,8 +197,16 @@ class Sweep:
             while queue and len(pending) < ex.max_in_flight:
                 i = queue.pop()
                 sc = scenes[i]
-                fut = ex.executor.submit(self.run_fn, sc.name, sc.to_json())
+                try:
+                    fut = ex.executor.submit(self.run_fn, sc.name, sc.to_json())
+                except Exception as err:  # a broken pool: every later run fails the same way
+                    self.failed.append({**points[i].to_dict(), "stage": stage,
+                                        "error": f"{type(err).__name__}: {err}"})
+                    self._tick(f"{stage}: FAILED")
+                    continue
                 pending[fut] = i
+            if not pending:
+                continue
             done, _ = wait(list(pending), return_when=FIRST_COMPLETED)
             for fut in done:
                 i = pending.pop(fut)
@@ -405,44 +414,32 @@ def run_sweep(
     _check_scene(scene)
     variable = "we_sqrt" if deltas is None else "wetted_length"
     points, skipped = grid_points(scene, list(xs), we_sqrts=we_sqrts, deltas=deltas)
-    own_store = not isinstance(store, ResultStore)
-    st = ResultStore(store) if own_store else store
+    if not isinstance(store, ResultStore):
+        ResultStore.check(store)  # a bad file is refused before any connection or run
     progress = progress or NoProgress()
     try:
         if executor is None:
-            with open_executor(workers, scheduler) as ex:
-                return _run(
-                    scene,
-                    xs,
-                    variable,
-                    points,
-                    skipped,
-                    st,
-                    ex,
-                    run_fn,
-                    progress,
-                    refine_tol,
-                    criterion,
-                    t0,
-                )
-        return _run(
-            scene,
-            xs,
-            variable,
-            points,
-            skipped,
-            st,
-            executor,
-            run_fn,
-            progress,
-            refine_tol,
-            criterion,
-            t0,
-        )
+            with open_executor(workers, scheduler) as ex, _opened(store) as st:
+                return _run(scene, xs, variable, points, skipped, st, ex, run_fn, progress,
+                            refine_tol, criterion, t0)
+        with _opened(store) as st:
+            return _run(scene, xs, variable, points, skipped, st, executor, run_fn, progress,
+                        refine_tol, criterion, t0)
     finally:
         progress.close()
-        if own_store:
-            st.close()
+
+
+@contextlib.contextmanager
+def _opened(store):
+    """The store itself, or a store opened on a path (and closed after)."""
+    if isinstance(store, ResultStore):
+        yield store
+        return
+    st = ResultStore(store)
+    try:
+        yield st
+    finally:
+        st.close()
 
 
 def _run(

@@ -121,7 +121,12 @@ def open_executor(workers: int | None = None, scheduler: str | None = None):
         check_scheduler(scheduler)
         from distributed import Client
 
-        client = Client(scheduler)
+        try:
+            # 30 s: dask's own default connect timeout, said out loud
+            client = Client(scheduler, timeout=30)
+        except (OSError, TimeoutError) as err:
+            raise ValueError(f"--scheduler: got {scheduler!r}; could not connect to a dask "
+                             f"scheduler there ({type(err).__name__}: {err})") from None
         try:
             slots = max(1, sum(client.nthreads().values()))
             yield SweepExecutor(

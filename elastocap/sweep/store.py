@@ -70,7 +70,7 @@ _NAMES = tuple(c for c, _ in COLUMNS)
 _KEY = ("scene_digest", "version", "runner")
 
 
-class StoreError(RuntimeError):
+class StoreError(ValueError):
     """The file is not a store this version can use (the message says what to do)."""
 
 
@@ -129,6 +129,36 @@ class ResultStore:
                 f"{self.path}: not a usable sweep store ({err}); give another --store file"
             ) from None
 
+    @staticmethod
+    def check(path: str | Path) -> None:
+        """Refuse an existing file that is not a usable store, without writing anything (a
+        missing file is fine: it will be created)."""
+        path = Path(path)
+        if not path.exists():
+            return
+        if not path.is_file():
+            raise StoreError(f"store {str(path)!r}: not a file; give a file name")
+        try:
+            con = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+            try:
+                tables = {r[0] for r in con.execute(
+                    "SELECT name FROM sqlite_master WHERE type = 'table'")}
+                if tables and not {"runs", "meta"} <= tables:
+                    raise StoreError(f"store {str(path)!r}: an SQLite file without the sweep "
+                                     "tables (runs, meta); give another file")
+                if "meta" in tables:
+                    row = con.execute(
+                        "SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+                    if row is None or row[0] != str(SCHEMA_VERSION):
+                        raise StoreError(
+                            f"store {str(path)!r}: schema version {row and row[0]}, this "
+                            f"elastocap writes version {SCHEMA_VERSION}; give a new file")
+            finally:
+                con.close()
+        except sqlite3.DatabaseError as err:
+            raise StoreError(f"store {str(path)!r}: not a usable sweep store ({err}); give "
+                             "another file") from None
+
     def _setup(self) -> None:
         con = self._con
         con.execute(f"PRAGMA busy_timeout = {int(BUSY_TIMEOUT_S * 1000)}")
@@ -158,8 +188,8 @@ class ResultStore:
                 con.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
             elif row[0] != str(SCHEMA_VERSION):
                 raise StoreError(
-                    f"{self.path}: store schema version {row[0]}, this elastocap writes "
-                    f"version {SCHEMA_VERSION}; give a new --store file"
+                    f"store {str(self.path)!r}: schema version {row[0]}, this elastocap "
+                    f"writes version {SCHEMA_VERSION}; give a new file"
                 )
 
     @contextlib.contextmanager
