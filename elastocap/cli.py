@@ -331,6 +331,12 @@ def cmd_demo(args) -> int:
     return 0
 
 
+def cmd_sweep(args) -> int:
+    from elastocap.sweep.cli import run
+
+    return run(args)
+
+
 COMMANDS: dict[str, tuple[Callable, str]] = {
     "scenes": (cmd_scenes, "list the built-in scenes"),
     "show": (cmd_show, "print a validated scene and its derived quantities"),
@@ -338,6 +344,7 @@ COMMANDS: dict[str, tuple[Callable, str]] = {
     "folds": (cmd_folds, "locate the folds (limit points); --check a reference file"),
     "impact": (cmd_impact, "run an impact to rest; its outcome and measures"),
     "overlay": (cmd_overlay, "impacts drawn on the equilibria; which branch each reaches"),
+    "sweep": (cmd_sweep, "phase diagram of impacts over (x, We^1/2) or (x, Delta); resumable"),
     "figures": (cmd_figures, "regenerate the paper's figures"),
     "demo": (cmd_demo, "the quick-start tour on the default scene"),
 }
@@ -351,6 +358,10 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=help_text, description=help_text)
         p.set_defaults(func=func)
         p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+        if name == "sweep":
+            from elastocap.sweep.cli import add_arguments as sweep_arguments
+
+            sweep_arguments(p)
         if name in ("show", "branches", "folds", "impact", "overlay"):
             _scene_args(p)
         elif name == "demo":

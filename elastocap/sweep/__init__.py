@@ -3,9 +3,10 @@
 Over (x, We^1/2) -- x in units of l_eg, We^1/2 converted to Delta by the scene's spreading
 law -- or over (x, Delta); points whose wet interval leaves the rod are skipped with the
 reason. Results land in one SQLite store (:class:`ResultStore`), one row per run, keyed by
-(scene digest, package version, runner), so a re-run or a resumed sweep never repeats or
-duplicates a run. Runs go through any :class:`concurrent.futures.Executor`: a spawn-context
-process pool locally (one numba thread per worker) or a dask cluster. Each x line's
+(scene digest, package version, code digest, runner), so a re-run or a resumed sweep never
+repeats or duplicates a run, and an edit of the physics code never reuses stale results.
+Runs go through any :class:`concurrent.futures.Executor`: a spawn-context process pool
+locally (one numba thread per worker) or a dask cluster. Each x line's
 boundary is bisected to a tolerance; non-monotonic lines are detected and reported.
 
 Quick use::

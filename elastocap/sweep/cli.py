@@ -14,6 +14,7 @@ import math
 import sys
 from pathlib import Path
 
+from elastocap.jsonutil import jsonable
 from elastocap.scene import SceneError, load_scene, parse_override
 
 __all__ = ["add_arguments", "run"]
@@ -80,16 +81,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _jsonable(obj):
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return str(obj)
-    if isinstance(obj, dict):
-        return {k: _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    return obj
-
-
 def _validate(args):
     """Everything that can be refused, refused before any file is touched."""
     from elastocap.sweep.engine import SWEPT_KEYS
@@ -149,7 +140,9 @@ def _print_text(rep: dict, files: list[str]) -> None:
     )
     for s in rep["skipped"][:5]:
         print(
-            f"  skipped x = {s['x_over_leg']:.6g}, Delta = {s['wetted_length']:.6g}: {s['reason']}"
+            f"  skipped x = {s['x_over_leg']:.6g}"
+            + (f", We^1/2 = {s['we_sqrt']:.6g}" if s["we_sqrt"] is not None else "")
+            + f", Delta = {s['wetted_length']:.6g}: {s['reason']}"
         )
     if c["skipped"] > 5:
         print(f"  ... {c['skipped'] - 5} more skipped (see --json)")
@@ -197,7 +190,7 @@ def run(args) -> int:
         scheduler=args.scheduler,
         progress=progress,
     )
-    rep = _jsonable(result.to_dict())
+    rep = jsonable(result.to_dict())
     out.mkdir(parents=True, exist_ok=True)
     png = out / "phase-diagram.png"
     plot_phase_diagram(rep, png, experiments=experiments)

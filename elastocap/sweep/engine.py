@@ -161,6 +161,8 @@ class Sweep:
         self.runner = runner_name(run_fn)
         self.progress = progress or NoProgress()
         self.version = __version__
+        code = getattr(run_fn, "code_digest", None)
+        self.code_digest = code() if callable(code) else (code or "")
         self.computed = 0
         self.cached = 0
         self.failed: list[dict] = []
@@ -179,7 +181,7 @@ class Sweep:
         """
         scenes = [self.scene.with_overrides(p.overrides()) for p in points]
         digests = [s.digest() for s in scenes]
-        stored = self.store.get_many(digests, self.version, self.runner)
+        stored = self.store.get_many(digests, self.version, self.runner, self.code_digest)
         self._total += len(points)
         first: dict[str, int] = {}
         for i, d in enumerate(digests):
@@ -218,6 +220,14 @@ class Sweep:
                     ]
                     if missing:
                         raise ValueError(f"run function returned no {', '.join(missing)}")
+                    theirs = (res.get("version", self.version),
+                              res.get("code_digest", self.code_digest))
+                    if theirs != (self.version, self.code_digest):
+                        raise RuntimeError(
+                            f"the worker runs elastocap {theirs[0]} (code {theirs[1]}), this "
+                            f"sweep {self.version} (code {self.code_digest}): install the "
+                            "same code on every worker (or restart the workers after an edit)"
+                        )
                 except Exception as err:  # a run that raised is reported, not stored
                     self.failed.append(
                         {**p.to_dict(), "stage": stage, "error": f"{type(err).__name__}: {err}"}
@@ -228,6 +238,7 @@ class Sweep:
                 row.update(
                     scene_digest=d,
                     version=self.version,
+                    code_digest=self.code_digest,
                     runner=self.runner,
                     scene_name=sc.name,
                     scene_json=sc.to_json(),
@@ -237,7 +248,7 @@ class Sweep:
                     wetted_length=p.wetted_length,
                 )
                 if not self.store.put(row):  # another sweep stored it first: use theirs
-                    row = self.store.get(d, self.version, self.runner) or row
+                    row = self.store.get(d, self.version, self.runner, self.code_digest) or row
                 result_rows[d] = row
                 self.computed += 1
                 self._tick(f"{stage}: {row['outcome']}")
@@ -298,6 +309,9 @@ class Sweep:
                 points, keep = [], []
                 for b, t in active:
                     mid = 0.5 * (t.low + t.high)
+                    if not t.low < mid < t.high:  # tol below the float spacing: stop here
+                        b.notes.append(f"bracket [{t.low!r}, {t.high!r}] at float resolution")
+                        continue
                     kw = {variable: mid}
                     p = make_point(self.scene, b.x_over_leg, **kw)
                     if isinstance(p, SkippedPoint):  # cannot happen inside a valid bracket

@@ -84,7 +84,7 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
     runs = rep["runs"]
     use_we = bool(runs) and all(r.get("we_sqrt") is not None for r in runs)
     hkey = "we_sqrt" if use_we else "wetted_length"
-    fig = Figure(figsize=(6.4, 4.8), dpi=130)
+    fig = Figure(figsize=(8.0, 4.8), dpi=130)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     for outcome, style in (("open", {"mfc": "none"}), ("encapsulated", {"mfc": "k"})):
@@ -160,7 +160,8 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
         fontsize=9,
     )
     ax.grid(alpha=0.25)
-    ax.legend(fontsize=7, loc="best")
+    # outside the axes, on the right: a legend inside would hide points of the diagram
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     if path is not None:
         fig.savefig(path, bbox_inches="tight")
     return fig

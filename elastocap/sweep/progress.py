@@ -77,10 +77,11 @@ class TqdmProgress:
 
 
 def make_progress(kind: str = "none") -> Progress:
-    """``"none"``, ``"text"``, ``"tqdm"`` or ``"auto"`` (tqdm if installed, else text)."""
+    """``"none"``, ``"text"``, ``"tqdm"`` or ``"auto"`` (tqdm when installed and stderr is a
+    terminal, else text: a log file gets lines, not bar redraws)."""
     if kind == "none":
         return NoProgress()
-    if kind == "text":
+    if kind == "text" or (kind == "auto" and not sys.stderr.isatty()):
         return TextProgress()
     if kind in ("tqdm", "auto"):
         try:

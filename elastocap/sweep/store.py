@@ -3,8 +3,10 @@
 Guarantees and how they are met:
 
 * **A resumed sweep never duplicates.** Each run has the UNIQUE key (scene_digest,
-  version, runner): the SHA-256 of the resolved scene (every parameter, numerics
-  included), the package version that computed it and the name of the run function.
+  version, code_digest, runner): the SHA-256 of the resolved scene (every parameter,
+  numerics included), the package version, a fingerprint of the physics source code that
+  computed it (so a fix made without a version bump is never served stale results) and the
+  name of the run function.
   Rows are written with ``INSERT OR IGNORE``: a second writer of the same run is a no-op.
 * **Re-running skips stored runs.** Before submitting, a sweep looks its runs up by key.
 * **A killed sweep loses at most the runs in flight, and no row is half-written.** One
@@ -42,6 +44,7 @@ BUSY_TIMEOUT_S = 60.0
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("scene_digest", "TEXT NOT NULL"),
     ("version", "TEXT NOT NULL"),
+    ("code_digest", "TEXT NOT NULL"),
     ("runner", "TEXT NOT NULL"),
     ("scene_name", "TEXT NOT NULL"),
     ("scene_json", "TEXT NOT NULL"),
@@ -67,7 +70,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("created_utc", "TEXT NOT NULL"),
 )
 _NAMES = tuple(c for c, _ in COLUMNS)
-_KEY = ("scene_digest", "version", "runner")
+_KEY = ("scene_digest", "version", "code_digest", "runner")
 
 
 class StoreError(ValueError):
@@ -206,7 +209,9 @@ class ResultStore:
     # -------------------------------------------------------------------------- writing
     def put(self, row: dict) -> bool:
         """Write one run in its own transaction. Returns False if the key was already stored
-        (by this or another sweep): the stored row is kept, nothing is written."""
+        (by this or another sweep): the stored row is kept, nothing is written. A missing
+        ``code_digest`` is stored as "" (run functions without a code identity)."""
+        row = {"code_digest": "", **row}
         missing = [
             n for n, t in COLUMNS if "NOT NULL" in t and n != "created_utc" and row.get(n) is None
         ]
@@ -245,24 +250,26 @@ class ResultStore:
             out.append(d)
         return out
 
-    def get_many(self, digests, version: str, runner: str) -> dict[str, dict]:
-        """Stored rows by scene digest for one version and runner (missing ones absent)."""
+    def get_many(self, digests, version: str, runner: str, code_digest: str = "") -> dict:
+        """Stored rows by scene digest for one (version, runner, code digest); missing ones
+        are absent from the dict."""
         digests = list(dict.fromkeys(digests))
         out: dict[str, dict] = {}
         # 500 per query: below SQLite's default limit of 999 bound parameters
         for i in range(0, len(digests), 500):
             chunk = digests[i : i + 500]
             cur = self._con.execute(
-                f"SELECT * FROM runs WHERE version = ? AND runner = ? AND scene_digest IN "
+                "SELECT * FROM runs WHERE version = ? AND runner = ? AND code_digest = ? AND "
+                f"scene_digest IN "
                 f"({', '.join('?' for _ in chunk)})",
-                (version, runner, *chunk),
+                (version, runner, code_digest, *chunk),
             )
             for r in self._rows(cur):
                 out[r["scene_digest"]] = r
         return out
 
-    def get(self, digest: str, version: str, runner: str) -> dict | None:
-        return self.get_many([digest], version, runner).get(digest)
+    def get(self, digest: str, version: str, runner: str, code_digest: str = "") -> dict | None:
+        return self.get_many([digest], version, runner, code_digest).get(digest)
 
     def rows(
         self, *, version: str | None = None, runner: str | None = None, positions: bool = False

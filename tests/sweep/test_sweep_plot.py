@@ -1,0 +1,78 @@
+"""The phase-diagram plot: what is drawn (counted), experimental points from a CSV, and the
+CSV's errors by message."""
+
+import numpy as np
+import pytest
+
+from elastocap.sweep import load_experiments, plot_phase_diagram
+
+
+def _report():
+    runs = []
+    for x in (1.0, 2.0):
+        for w in (0.5, 1.5, 2.5):
+            enc = w > 1.0 + 0.5 * x
+            o = "encapsulated" if enc else "open"
+            runs.append({"x": x, "we_sqrt": w, "wetted_length": 1.0 + w, "outcome": o,
+                         "companion_outcome": o})
+    runs[-1]["companion_outcome"] = "open"  # one disagreement, at (2.0, 2.5)
+    boundary = [
+        {"x": 1.0, "status": "bracketed", "we_sqrt_low": 1.4, "we_sqrt_high": 1.6,
+         "wetted_length_low": 2.4, "wetted_length_high": 2.6, "transitions": []},
+        {"x": 2.0, "status": "bracketed", "we_sqrt_low": 1.9, "we_sqrt_high": 2.2,
+         "wetted_length_low": 2.9, "wetted_length_high": 3.2, "transitions": []},
+    ]
+    return {"scene": "fig3-strip", "version": "0", "x_unit": "l_eg", "variable": "we_sqrt",
+            "runs": runs, "boundary": boundary}
+
+
+def _line(ax, label):
+    return next(ln for ln in ax.get_lines() if ln.get_label() == label)
+
+
+def test_markers_boundary_and_disagreements(tmp_path):
+    fig = plot_phase_diagram(_report(), tmp_path / "p.png")
+    ax = fig.axes[0]
+    opn, enc = _line(ax, "not encapsulated"), _line(ax, "encapsulated")
+    assert len(opn.get_xdata()) == 4 and opn.get_markerfacecolor() == "none"
+    assert len(enc.get_xdata()) == 2
+    dis = _line(ax, "companion criterion disagrees")
+    assert list(dis.get_xdata()) == [2.5] and list(dis.get_ydata()) == [2.0]
+    # boundary through the bracket midpoints, half-widths as error bars
+    (eb,) = ax.containers
+    np.testing.assert_allclose(np.asarray(eb.lines[0].get_xdata(), float), [1.5, 2.05])
+    np.testing.assert_allclose(np.asarray(eb.lines[0].get_ydata(), float), [1.0, 2.0])
+    segs = eb.lines[2][0].get_segments()
+    np.testing.assert_allclose([s[1][0] - s[0][0] for s in segs], [0.2, 0.3])
+    assert ax.get_ylabel() == "x / ℓ_eg" and "We" in ax.get_xlabel()
+    assert (tmp_path / "p.png").stat().st_size > 1000
+
+
+def test_experimental_points_from_csv(tmp_path):
+    csv = tmp_path / "exp.csv"
+    csv.write_text("x_over_leg,we_sqrt,outcome,note\n1.0,2.0,encapsulated,a\n2,1,open,\n"
+                   "3,2.5,enc,\n")
+    exps = load_experiments(csv)
+    assert exps == [
+        {"x_over_leg": 1.0, "we_sqrt": 2.0, "outcome": "encapsulated"},
+        {"x_over_leg": 2.0, "we_sqrt": 1.0, "outcome": "open"},
+        {"x_over_leg": 3.0, "we_sqrt": 2.5, "outcome": "encapsulated"},
+    ]
+    ax = plot_phase_diagram(_report(), experiments=csv).axes[0]
+    assert len(_line(ax, "experiment: encapsulated").get_xdata()) == 2
+    assert len(_line(ax, "experiment: open").get_xdata()) == 1
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("x,we_sqrt,outcome\n1,2,open\n", r"missing column\(s\) x_over_leg"),
+        ("x_over_leg,we_sqrt,outcome\n1,fast,open\n", r"line 2: x_over_leg and we_sqrt must"),
+        ("x_over_leg,we_sqrt,outcome\n1,2,open\n1,2,maybe\n", r"line 3: outcome 'maybe'"),
+    ],
+)
+def test_bad_experiment_csv_by_message(tmp_path, text, match):
+    p = tmp_path / "e.csv"
+    p.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        load_experiments(p)

@@ -1,0 +1,134 @@
+"""The SQLite result store: one row per run, the unique key, atomic rows, concurrent
+writers (separate processes) without corruption or duplicates."""
+
+import os
+import sqlite3
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from elastocap.sweep.store import COLUMNS, ResultStore, StoreError
+
+
+def _row(i: int, **kw) -> dict:
+    row = {
+        "scene_digest": f"{i:064x}",
+        "version": "9.9",
+        "runner": "test",
+        "scene_name": "s",
+        "scene_json": "{}",
+        "x": float(i),
+        "x_over_leg": float(i),
+        "we_sqrt": 0.5 * i,
+        "wetted_length": 1.0 + i,
+        "outcome": "open",
+        "companion_outcome": "encapsulated",
+        "final_measure": 0.25,
+        "status": "completed",
+        "final_positions": np.arange(6.0).reshape(3, 2) * i,
+        "decided_after_crossing": True,
+    }
+    row.update(kw)
+    return row
+
+
+def test_round_trip_and_unique_key(tmp_path):
+    with ResultStore(tmp_path / "s.sqlite") as st:
+        assert st.put(_row(1)) is True
+        assert st.put(_row(1, outcome="encapsulated")) is False  # same key: kept, not replaced
+        assert st.put(_row(1, version="9.10")) is True  # another version is another run
+        assert st.count() == 2
+        r = st.get(f"{1:064x}", "9.9", "test")
+        assert r["outcome"] == "open" and r["companion_outcome"] == "encapsulated"
+        np.testing.assert_array_equal(r["final_positions"], np.arange(6.0).reshape(3, 2))
+        assert r["decided_after_crossing"] is True
+        assert r["created_utc"].endswith("+00:00") and r["host"]
+        assert st.integrity() == "ok"
+        mode = st._con.execute("PRAGMA journal_mode").fetchone()[0]
+        assert mode == "wal"
+        got = st.get_many([f"{i:064x}" for i in range(3)], "9.9", "test")
+        assert list(got) == [f"{1:064x}"]
+        assert {n for n, _ in COLUMNS} <= set(st.rows()[0]) | {"final_positions"}
+
+
+def test_incomplete_row_is_refused_and_nothing_written(tmp_path):
+    with ResultStore(tmp_path / "s.sqlite") as st:
+        bad = _row(2)
+        del bad["outcome"]
+        with pytest.raises(ValueError, match="row: missing outcome"):
+            st.put(bad)
+        assert st.count() == 0
+
+
+def test_other_schema_and_non_sqlite_files_are_refused(tmp_path):
+    p = tmp_path / "s.sqlite"
+    ResultStore(p).close()
+    con = sqlite3.connect(p)
+    con.execute("UPDATE meta SET value = '99' WHERE key = 'schema_version'")
+    con.commit()
+    con.close()
+    with pytest.raises(StoreError, match="schema version 99, this elastocap writes version 1"):
+        ResultStore(p)
+    with pytest.raises(StoreError, match="schema version 99"):
+        ResultStore.check(p)
+    junk = tmp_path / "junk.sqlite"
+    junk.write_bytes(b"not a database at all" * 100)
+    with pytest.raises(StoreError, match="not a usable sweep store"):
+        ResultStore(junk)
+    with pytest.raises(StoreError, match="not a usable sweep store"):
+        ResultStore.check(junk)
+    other = tmp_path / "other.sqlite"
+    con = sqlite3.connect(other)
+    con.execute("CREATE TABLE t (a)")
+    con.commit()
+    con.close()
+    with pytest.raises(StoreError, match="without the sweep tables"):
+        ResultStore.check(other)
+    ResultStore.check(tmp_path / "new.sqlite")  # a missing file is fine, and not created
+    assert not (tmp_path / "new.sqlite").exists()
+
+
+WRITER = textwrap.dedent(
+    """
+    import sys
+    import numpy as np
+    from elastocap.sweep.store import ResultStore
+    path, start = sys.argv[1], int(sys.argv[2])
+    st = ResultStore(path)
+    inserted = 0
+    for i in range(start, start + 60):
+        inserted += st.put({
+            "scene_digest": f"{i:064x}", "version": "9.9", "runner": "test",
+            "scene_name": "s", "scene_json": "{}", "x": float(i), "x_over_leg": float(i),
+            "wetted_length": 1.0, "outcome": "open", "companion_outcome": "open",
+            "status": "completed", "final_positions": np.zeros((50, 2)) + i,
+        })
+    print(inserted)
+    """
+)
+
+
+def test_concurrent_writers_do_not_corrupt_or_duplicate(tmp_path):
+    """Four processes write 60 runs each, overlapping by 30 (keys 0..149), at the same time
+    into one new store: every key once, the file sound, insert counts adding up."""
+    p = tmp_path / "shared.sqlite"
+    env = {**os.environ, "PYTHONWARNINGS": "error"}
+    procs = [
+        subprocess.Popen([sys.executable, "-c", WRITER, str(p), str(start)],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        for start in (0, 30, 60, 90)
+    ]
+    outs = [pr.communicate(timeout=120) for pr in procs]
+    assert all(pr.returncode == 0 for pr in procs), [o[1] for o in outs]
+    inserted = sum(int(o[0]) for o in outs)
+    with ResultStore(p) as st:
+        assert st.integrity() == "ok"
+        n, distinct = st._con.execute(
+            "SELECT COUNT(*), COUNT(DISTINCT scene_digest) FROM runs").fetchone()
+        assert n == distinct == 150 == inserted
+        for r in st.rows(positions=True):
+            assert r["final_positions"].shape == (50, 2)
+            assert np.all(r["final_positions"] == int(r["scene_digest"], 16))
