@@ -305,12 +305,27 @@ class Scene:
         return self.rod.length - self.drop.center
 
     def to_json(self) -> str:
-        """Canonical JSON of the resolved input (sorted keys): what a result file records."""
+        """JSON of the resolved input (sorted keys): what a result file records."""
         return json.dumps(self.data, sort_keys=True, separators=(",", ":"))
 
+    def canonical(self) -> dict:
+        """The validated values (floats, defaults filled in): equal physics, equal dict,
+        however the input was typed (``40`` or ``40.0``, a default written out or not)."""
+        from dataclasses import asdict
+
+        return {
+            "rod": asdict(self.rod),
+            "drop": asdict(self.drop),
+            "effects": asdict(self.effects),
+            "numerics": asdict(self.numerics),
+            "spreading": None if self.spreading is None else asdict(self.spreading),
+            "experiment": None if self.experiment is None else asdict(self.experiment),
+        }
+
     def digest(self) -> str:
-        """SHA-256 of :meth:`to_json`: equal scenes, equal digests."""
-        return hashlib.sha256(self.to_json().encode()).hexdigest()
+        """SHA-256 of the canonical validated values: equal scenes, equal digests."""
+        text = json.dumps(self.canonical(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
 
     def with_overrides(self, overrides: dict[str, Any]) -> Scene:
         """A new scene with dotted-key overrides applied and validated again."""

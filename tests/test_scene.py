@@ -146,3 +146,12 @@ def test_fuzzed_scenes_either_valid_or_clear_error(length, area, delta):
     else:
         assert 0 < s.drop.wetted_length <= s.rod.length
         assert all(math.isfinite(v) for v in (s.rod.length, s.drop.area, s.drop.s1, s.drop.s2))
+
+
+def test_digest_depends_on_values_not_on_how_they_are_typed():
+    a = load_scene("supp-fig5", ["numerics.t_max=40"])
+    b = load_scene("supp-fig5", ["numerics.t_max=40.0"])
+    c = load_scene("supp-fig5", ["numerics.t_max=41"])
+    d = load_scene("supp-fig5", ["drop.center=2.3"])  # the default, written out
+    assert a.digest() == b.digest() != c.digest()
+    assert d.digest() == load_scene("supp-fig5").digest()
