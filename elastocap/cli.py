@@ -111,6 +111,11 @@ def _trace(args):
 
     scene = _load(args)
     prange = tuple(args.range) if args.range else None
+    if scene.effects.gravity > 0 or scene.effects.ground:
+        # the strip on the ground: lift-off point as a free boundary (elastocap.strip)
+        from elastocap.strip.branches import trace_strip_branches
+
+        return trace_strip_branches(scene, args.param, prange)
     return trace_branches(scene, args.param, prange)
 
 
@@ -157,7 +162,12 @@ def cmd_branches(args) -> int:
     out = _out_dir(args, f"branches-{bs.scene.name}")
     paths = bs.save(out)
     png = out / "branches.png"
-    plot_branch_set(bs, png)
+    if type(bs).__name__ == "StripBranchSet":
+        from elastocap.strip.plot import plot_strip_branch_set
+
+        plot_strip_branch_set(bs, png)
+    else:
+        plot_branch_set(bs, png)
     paths.append(png)
     if args.json:
         rep = _fold_report(bs)

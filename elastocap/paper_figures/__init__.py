@@ -16,6 +16,7 @@ FIGURES = {
     "bistability": "bistability",
     "supp-fig5": "supp_fig5",
     "overlay": "overlay",
+    "energy-barrier": "energy_barrier",
 }
 
 

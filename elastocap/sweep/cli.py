@@ -79,6 +79,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="KEY=VALUE",
         help="override a scene key, e.g. --set numerics.accuracy=draft",
     )
+    parser.add_argument(
+        "--accuracy",
+        choices=("draft", "default", "publication"),
+        help="resolution preset of every impact (same as --set numerics.accuracy=...)",
+    )
 
 
 def _validate(args):
@@ -98,6 +103,8 @@ def _validate(args):
             raise SceneError(
                 key, value, "set by the sweep on every point (--x, --we/--delta); remove this --set"
             )
+    if args.accuracy:
+        args.overrides = [*args.overrides, f"numerics.accuracy={args.accuracy}"]
     scene = load_scene(args.scene, args.overrides)
     if "experiment" in scene.data:
         raise SceneError(
