@@ -130,9 +130,17 @@ def impact_settings(scene: Scene) -> dict:
     }
 
 
+def _wet_interval(scene: Scene) -> tuple[float, float]:
+    """[S1, S2] clipped to [0, L]: the scene accepts a wet interval that ends at a rod end
+    up to round-off (1e-12 L), the capillary kernel needs 0 <= S1 < S2 <= L exactly."""
+    d, L = scene.drop, scene.rod.length
+    return max(d.s1, 0.0), min(d.s2, L)
+
+
 def _effects(scene: Scene):
     d = scene.drop
-    eff = [Capillary(d.area, d.s1, d.s2, d.line_tension)]
+    s1, s2 = _wet_interval(scene)
+    eff = [Capillary(d.area, s1, s2, d.line_tension)]
     if scene.effects.gravity > 0:
         eff.append(Gravity(scene.effects.gravity))
     if scene.effects.ground:
@@ -193,7 +201,7 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
     # crossings, frame by frame, with the contact lines in force at that time
     rod_t = if_t = None
     cap = effects[0].params.copy()
-    cap[1:3] = scene.drop.s1, scene.drop.s2
+    cap[1:3] = _wet_interval(scene)
     fired = list(sim.events_fired)
     for k, (tk, pos) in enumerate(zip(sim.times, sim.positions, strict=True)):
         if rod_t is not None and if_t is not None:
