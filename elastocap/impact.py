@@ -234,16 +234,32 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
     if not sim.success:
         # a failed run has no outcome: say what failed, and whether the contact lines met
         outcome = "failed"
-        d = float(np.hypot(*(np.array([np.interp(cap[2], s_nodes, final[:, 0]),
-                                       np.interp(cap[2], s_nodes, final[:, 1])])
-                             - np.array([np.interp(cap[1], s_nodes, final[:, 0]),
-                                         np.interp(cap[1], s_nodes, final[:, 1])]))))
+        d = float(
+            np.hypot(
+                *(
+                    np.array(
+                        [
+                            np.interp(cap[2], s_nodes, final[:, 0]),
+                            np.interp(cap[2], s_nodes, final[:, 1]),
+                        ]
+                    )
+                    - np.array(
+                        [
+                            np.interp(cap[1], s_nodes, final[:, 0]),
+                            np.interp(cap[1], s_nodes, final[:, 1]),
+                        ]
+                    )
+                )
+            )
+        )
         if d < 0.05 * (cap[2] - cap[1]):
-            message += (f" At the last frame the contact lines are {d:.3g} apart (Delta = "
-                        f"{cap[2] - cap[1]:.3g}): the drop is closing inside the wrap, where "
-                        "the circular-cap model is singular (chord -> 0); the outcome up to "
-                        "then was encapsulation-bound. Try a smaller numerics.dt or a larger "
-                        "numerics.n_edges, or read it as a closed wrap.")
+            message += (
+                f" At the last frame the contact lines are {d:.3g} apart (Delta = "
+                f"{cap[2] - cap[1]:.3g}): the drop is closing inside the wrap, where "
+                "the circular-cap model is singular (chord -> 0); the outcome up to "
+                "then was encapsulation-bound. Try a smaller numerics.dt or a larger "
+                "numerics.n_edges, or read it as a closed wrap."
+            )
     return ImpactResult(
         outcome=outcome,
         criterion=criterion,

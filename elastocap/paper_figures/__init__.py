@@ -17,6 +17,8 @@ FIGURES = {
     "supp-fig5": "supp_fig5",
     "overlay": "overlay",
     "energy-barrier": "energy_barrier",
+    "fig3d": "fig3d",
+    "fig4-fig5": "fig4_fig5",
 }
 
 
