@@ -57,3 +57,26 @@ def test_overlay_branch_reached(figs):
 def test_figures_cli_rejects_unknown_name(capsys):
     assert main(["figures", "--only", "fig99"]) == 2
     assert "expected one of" in capsys.readouterr().err
+
+
+def test_fig3d_fast_line(figs):
+    out, _ = figs
+    runs = json.loads((out / "fig3d.json").read_text())["runs"]
+    # x = 3 l_eg (draft, damping 0.1): We^1/2 = 1 stays open, 2.5 encapsulates (README Fig 3d)
+    got = {r["we_sqrt"]: r["outcome"] for r in runs}
+    assert got == {1.0: "open", 2.5: "encapsulated"}
+
+
+def test_fig4_floppy_encapsulation(figs):
+    out, _ = figs
+    s = json.loads((out / "fig4_fig5.json").read_text())
+    assert s["fig4B"]["outcome"] == "encapsulated" == s["fig4B"]["companion_outcome"]
+
+
+def test_energy_barrier_band(figs):
+    out, _ = figs
+    d = json.loads((out / "energy_barrier.json").read_text())
+    assert d["not_handled"]  # the limits are written into the output, not hidden
+    # x = 2 l_eg: the lifted wrapped state exists for 0.924 < Delta < 1.278 (strip statics)
+    lo, hi = d["x2"]["window"]
+    assert lo == pytest.approx(0.92394, abs=1e-3) and hi == pytest.approx(1.27773, abs=1e-3)
