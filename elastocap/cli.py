@@ -120,16 +120,8 @@ def _trace(args):
 
 
 def _fold_report(bs) -> dict:
-    return {
-        "scene": bs.scene.name,
-        "parameter": bs.parameter,
-        "range": list(bs.prange),
-        "folds": bs.folds,
-        "branch_points": bs.branch_points,
-        "maxwell_points": bs.maxwell_points,
-        "endpoints": bs.endpoints,
-        "metadata": bs.metadata,
-    }
+    """The special points of a branch set (its summary without the per-branch lines)."""
+    return {k: v for k, v in bs.summary().items() if k != "branches"}
 
 
 def _print_folds(bs) -> None:

@@ -29,6 +29,7 @@ from continuation import (
     switch_branch,
 )
 from elastocap._version import __version__
+from elastocap.jsonutil import jsonable
 from elastocap.scene import Scene, SceneError
 from elastocap.statics.wet_elastica import PARAMETERS, WetElasticaProblem
 
@@ -215,21 +216,9 @@ class BranchSet:
             )
             paths.append(br.save(out / f"branch_{k}.npz"))
         js = out / "branches.json"
-        js.write_text(json.dumps(_jsonable(self.summary()), indent=2))
+        js.write_text(json.dumps(jsonable(self.summary()), indent=2))
         paths.append(js)
         return paths
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return str(obj)
-    return obj
 
 
 def _settings(scene: Scene, lo: float, hi: float, span: float) -> ContinuationSettings:

@@ -24,11 +24,9 @@ resting on it needs a second contact: not handled).
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -40,7 +38,7 @@ from continuation import (
 )
 from elastocap._version import __version__
 from elastocap.scene import Scene, SceneError
-from elastocap.statics.branches import _jsonable, newton
+from elastocap.statics.branches import BranchSet, newton
 from elastocap.statics.spectral import lgl_interp_matrix
 from elastocap.strip.problem import PARAMETERS, StripProblem
 from elastocap.strip.shape import lowest_point
@@ -115,73 +113,17 @@ def strip_problem_for(scene: Scene, parameter="drop.wetted_length", N=None) -> S
 
 
 @dataclass
-class StripBranchSet:
+class StripBranchSet(BranchSet):
     """Branches of the strip in one parameter, with folds and topology endpoints.
 
-    Attributes
-    ----------
-    branches : list of continuation.Branch
-    labels : list of str
-    folds : list of dict
-        value, measure, energy, stability_change, error_estimate, located, branch.
-    endpoints : list of dict
-        Where branches stop: value, kind (``touchdown``, ``lift_off_at_S1``, ``endpoint``),
-        measure, reason, branch.
-    metadata : dict
+    The fields of :class:`elastocap.statics.branches.BranchSet`; ``endpoints`` also carry the
+    topology changes (``touchdown``, ``lift_off_at_S1``); ``problem`` is a StripProblem.
+    ``branch_points`` and ``maxwell_points`` stay empty (not searched for here).
     """
 
-    scene: Scene
-    parameter: str
-    prange: tuple
-    problem: StripProblem
-    branches: list = field(default_factory=list)
-    labels: list = field(default_factory=list)
-    folds: list = field(default_factory=list)
-    endpoints: list = field(default_factory=list)
-    metadata: dict = field(default_factory=dict)
-    # kept for compatibility with elastocap.statics.branches.BranchSet consumers
-    branch_points: list = field(default_factory=list)
-    maxwell_points: list = field(default_factory=list)
-
     def summary(self) -> dict:
-        """Plain data for ``--json``."""
-        return {
-            "scene": self.scene.name,
-            "parameter": self.parameter,
-            "range": list(self.prange),
-            "folds": self.folds,
-            "branch_points": self.branch_points,
-            "maxwell_points": self.maxwell_points,
-            "endpoints": self.endpoints,
-            "branches": [
-                {
-                    "label": lab,
-                    "points": len(br),
-                    "range": [float(br.p.min()), float(br.p.max())] if len(br) else None,
-                    "stable_points": int(np.sum(br.stability == 0)),
-                    "status": br.status,
-                    "message": br.message,
-                }
-                for br, lab in zip(self.branches, self.labels, strict=True)
-            ],
-            "not_handled": NOT_HANDLED,
-            "metadata": self.metadata,
-        }
-
-    def save(self, out_dir) -> list:
-        """Write ``branch_K.npz`` per branch and ``branches.json``."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = []
-        for k, br in enumerate(self.branches):
-            br.metadata.update(
-                {"label": self.labels[k], "scene": self.scene.data, "statics": self.metadata}
-            )
-            paths.append(br.save(out / f"branch_{k}.npz"))
-        js = out / "branches.json"
-        js.write_text(json.dumps(_jsonable(self.summary()), indent=2))
-        paths.append(js)
-        return paths
+        """Plain data for ``--json``, with what this solver does not compute."""
+        return {**super().summary(), "not_handled": NOT_HANDLED}
 
 
 #: What the strip statics does not compute (also in every summary).
