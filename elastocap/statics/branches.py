@@ -175,6 +175,7 @@ class BranchSet:
     folds: list = field(default_factory=list)
     branch_points: list = field(default_factory=list)
     maxwell_points: list = field(default_factory=list)
+    admissibility_changes: list = field(default_factory=list)
     endpoints: list = field(default_factory=list)
     metadata: dict = field(default_factory=dict)
 
@@ -187,6 +188,7 @@ class BranchSet:
             "folds": self.folds,
             "branch_points": self.branch_points,
             "maxwell_points": self.maxwell_points,
+            "admissibility_changes": self.admissibility_changes,
             "endpoints": self.endpoints,
             "branches": [
                 {
@@ -312,7 +314,11 @@ def trace_branches(
         S = problem.state(u, p)
         return S.d - _CHORD_STOP * problem.params["delta"]
 
-    events = {"contact_lines_meet": chord_event}
+    def admissible_event(u, p):
+        # +1/2 admissible, -1/2 not: the sign change is located to the bisection tolerance
+        return problem.observables(u, p)["admissible"] - 0.5
+
+    events = {"contact_lines_meet": chord_event, "admissibility": admissible_event}
     for k, pk in enumerate(grid_p):
         events[f"grid{k}"] = lambda u, p, pk=pk: p - pk
     result = BranchSet(scene, parameter, (lo, hi), problem)
@@ -545,6 +551,16 @@ def _collect_special_points(result: BranchSet, error_estimates: bool) -> None:
                         "branch": b,
                     }
                 )
+            elif sp.kind == "event" and sp.name == "admissibility":
+                # where the drawn shape starts or stops crossing itself or the interface
+                result.admissibility_changes.append(
+                    {
+                        "value": float(sp.p),
+                        "measure": float(obs.get("measure", math.nan)),
+                        "precision": float(sp.precision),
+                        "branch": b,
+                    }
+                )
             elif sp.kind == "endpoint" or (sp.kind == "event" and sp.name == "contact_lines_meet"):
                 reason = "contact lines meet" if sp.kind == "event" else br.message
                 result.endpoints.append(
@@ -558,6 +574,7 @@ def _collect_special_points(result: BranchSet, error_estimates: bool) -> None:
                 )
     # dedupe mirror images / the same point reached from two branches
     result.folds = _dedupe(result.folds)
+    result.admissibility_changes = _dedupe(result.admissibility_changes)
     result.branch_points = _dedupe(result.branch_points)
     result.folds.sort(key=lambda f: f["value"])
     result.maxwell_points = _maxwell_points(result)
