@@ -8,25 +8,14 @@
 Prints tables; the README quotes them.
 """
 
-import statistics
 import sys
-import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "statics"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from wp_common import median_time  # noqa: E402  (also puts tests/statics on the path)
 
 from elastocap.scene import load_scene  # noqa: E402
 from elastocap.statics.branches import trace_branches  # noqa: E402
-
-
-def _median_time(fn, repeat=5):
-    fn()  # warm-up: numba kernels compiled or loaded from cache
-    ts = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts), out
 
 
 def main():
@@ -35,7 +24,7 @@ def main():
     print("|---:|---:|---:|---:|---:|---:|---:|")
     for N in (16, 24, 40):
         scene = load_scene("supp-fig5", {"numerics.cheb_points": N})
-        t, bs = _median_time(lambda scene=scene: trace_branches(scene))
+        t, bs = median_time(lambda scene=scene: trace_branches(scene), repeat=5)
         steps = sum(len(b) for b in bs.branches)
         f = bs.folds[0]
         print(f"| {N} | {len(bs.branches)} | {f['value']:.12f} | {f['error_estimate']:.1e} | "
@@ -48,7 +37,7 @@ def main():
     print("|---|---:|---:|---:|")
     for nodes in ("lgl", "chebyshev"):
         for N in (8, 12, 16, 20, 24, 32, 48):
-            t, f = _median_time(lambda N=N, nodes=nodes: _fold_at(N, nodes))
+            t, f = median_time(lambda N=N, nodes=nodes: _fold_at(N, nodes), repeat=5)
             print(f"| {nodes} | {N} | {abs(f - ref):.1e} | {1e3 * t:.1f} |")
 
 

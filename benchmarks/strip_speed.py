@@ -7,24 +7,13 @@
 Prints tables; the README text quotes them.
 """
 
-import statistics
-import time
 
 import numpy as np
+from wp_common import median_time
 
 from elastocap.scene import load_scene
 from elastocap.statics.branches import newton
 from elastocap.strip.branches import refine_state, seeds, strip_problem_for, trace_strip_branches
-
-
-def _median_time(fn, repeat=3):
-    fn()
-    ts = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts), out
 
 
 def main():
@@ -32,7 +21,7 @@ def main():
     print("| N | time | steps | lift_off_at_S1 | touchdown |")
     print("|---:|---:|---:|---:|---:|")
     for N in (12, 14, 20):
-        t, bs = _median_time(lambda N=N: trace_strip_branches(scene, N=N))
+        t, bs = median_time(lambda N=N: trace_strip_branches(scene, N=N))
         steps = sum(len(b) for b in bs.branches)
         ev = {e["kind"]: e["value"] for e in bs.endpoints if e["kind"] != "endpoint"}
         print(f"| {N} | {t:.2f} s | {steps} | {ev.get('lift_off_at_S1', np.nan):.10f} | "
