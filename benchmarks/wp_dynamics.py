@@ -27,6 +27,7 @@ import numpy as np
 from wp_common import IMG, load_record, median_time, save_record, table, wp_plot
 
 from dynamics import Clamp, euler_bernoulli_omega, simulate, stable_dt
+from dynamics.reference import crossing_period
 from elastocap.impact import run_impact
 from elastocap.scene import load_scene
 
@@ -117,10 +118,7 @@ def frequency_error(n_edges, frac, kind="clamped-free", periods=5, amplitude=1e-
     assert r.success, r.message
     q = (r.positions[:, :, 1] * (rod.mass * phi)).sum(axis=1)
     q -= q.mean()
-    t = r.times
-    i = np.nonzero((q[:-1] > 0) & (q[1:] <= 0))[0]
-    tc = t[i] - q[i] * (t[i + 1] - t[i]) / (q[i + 1] - q[i])
-    period = (tc[-1] - tc[0]) / (len(tc) - 1)
+    period = crossing_period(r.times, q)
     return abs(2 * np.pi / period / omega - 1.0), wall
 
 

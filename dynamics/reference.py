@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["BETA_L", "euler_bernoulli_omega"]
+import numpy as np
+
+__all__ = ["BETA_L", "crossing_period", "euler_bernoulli_omega"]
 
 #: First-mode eigenvalues beta L of the Euler-Bernoulli beam (first roots of
 #: cos(bL) cosh(bL) = 1 for free-free and = -1 for clamped-free).
@@ -32,3 +34,26 @@ def euler_bernoulli_omega(kind, L, B, mu):
     if kind not in BETA_L:
         raise ValueError(f"kind must be one of {sorted(BETA_L)}, got {kind!r}")
     return BETA_L[kind] ** 2 * math.sqrt(B / (mu * L**4))
+
+
+def crossing_period(t, q):
+    """Mean period of an oscillating signal from its downward zero crossings.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Times (time units), increasing.
+    q : ndarray, shape (n,)
+        Signal (e.g. a modal amplitude), mean removed by the caller.
+
+    Returns
+    -------
+    float
+        (t_last - t_first) / (crossings - 1), each crossing time interpolated linearly
+        between the frames that bracket it (second-order accurate in the frame spacing).
+    """
+    i = np.nonzero((q[:-1] > 0) & (q[1:] <= 0))[0]
+    if i.size < 2:
+        raise ValueError(f"crossing_period: {i.size} downward zero crossing(s); need at least 2")
+    tc = t[i] - q[i] * (t[i + 1] - t[i]) / (q[i + 1] - q[i])
+    return float((tc[-1] - tc[0]) / (len(tc) - 1))

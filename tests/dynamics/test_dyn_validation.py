@@ -5,7 +5,7 @@ import pytest
 from dyn_helpers import rod_from_angles
 
 from dynamics import Clamp, euler_bernoulli_omega, simulate
-from dynamics.reference import BETA_L
+from dynamics.reference import BETA_L, crossing_period
 
 
 def _mode(kind, s, L):
@@ -48,10 +48,7 @@ def first_mode_frequency_error(kind, n_edges, periods=5, amplitude=1e-4):
     assert r.success, r.message
     q = (r.positions[:, :, 1] * (rod.mass * phi)).sum(axis=1)
     q -= q.mean()
-    t = r.times
-    i = np.nonzero((q[:-1] > 0) & (q[1:] <= 0))[0]
-    tc = t[i] - q[i] * (t[i + 1] - t[i]) / (q[i + 1] - q[i])
-    period = (tc[-1] - tc[0]) / (len(tc) - 1)
+    period = crossing_period(r.times, q)
     return 2 * np.pi / period / omega - 1.0
 
 
