@@ -271,13 +271,26 @@ class SimulationResult:
             "n_frames": int(self.times.size),
         }
 
-    def save_npz(self, path):
-        """Save arrays and the diagnostics (as JSON metadata) to ``path``."""
+    def save_npz(self, path, context=None):
+        """Save arrays and the diagnostics (as JSON metadata) to ``path``.
+
+        ``context`` (a JSON-serialisable dict, e.g. the scene, resolution and package
+        version of the run) is stored beside them as ``context`` and read back by
+        :func:`load_npz_context`.
+        """
         arrays = {"times": self.times, "positions": self.positions,
                   "velocities": self.velocities}
         for k, e in self.energies.items():
             arrays["energy__" + k] = e
+        if context is not None:
+            arrays["context"] = np.array(json.dumps(context))
         np.savez(path, meta=np.array(json.dumps(self.to_dict())), **arrays)
+
+    @staticmethod
+    def load_npz_context(path) -> dict | None:
+        """The ``context`` dict a file was saved with (None if it has none)."""
+        with np.load(path, allow_pickle=False) as f:
+            return json.loads(str(f["context"])) if "context" in f.files else None
 
     @classmethod
     def load_npz(cls, path) -> SimulationResult:

@@ -207,8 +207,8 @@ def cmd_impact(args) -> int:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         npz = out / f"impact-{scene.name}.npz"
-        res.simulation.save_npz(npz)
         meta = {**rep, "scene": scene.data}
+        res.simulation.save_npz(npz, context=jsonable(meta))
         (out / f"impact-{scene.name}.json").write_text(json.dumps(jsonable(meta), indent=2))
         png = out / f"impact-{scene.name}-frames.png"
         frame_strip(res, scene, png, k=args.frames or 8)
