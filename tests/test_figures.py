@@ -49,7 +49,7 @@ def test_supp_fig5_outcomes(figs):
 
 def test_overlay_branch_reached(figs):
     out, _ = figs
-    runs = json.loads((out / "overlay.json").read_text())
+    runs = json.loads((out / "overlay.json").read_text())["runs"]
     assert [r["branch_reached"] for r in runs][0] == "primary"
     assert runs[-1]["outcome"] == "encapsulated" and runs[-1]["branch_reached"] != "primary"
 
@@ -80,3 +80,12 @@ def test_energy_barrier_band(figs):
     # x = 2 l_eg: the lifted wrapped state exists for 0.924 < Delta < 1.278 (strip statics)
     lo, hi = d["x2"]["window"]
     assert lo == pytest.approx(0.92394, abs=1e-3) and hi == pytest.approx(1.27773, abs=1e-3)
+
+
+def test_every_json_record_says_what_made_it(figs):
+    out, written = figs
+    for paths in written.values():
+        for p in paths:
+            if p.suffix == ".json":
+                made = json.loads(p.read_text())["made_by"]
+                assert made["elastocap"] and made["scene"]["name"] and "accuracy" in made["numerics"]

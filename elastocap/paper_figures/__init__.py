@@ -22,6 +22,18 @@ FIGURES = {
 }
 
 
+def record(data: dict | list, scene, **settings) -> dict:
+    """A figure's JSON record: its data plus what made it (package version, the scene's
+    resolved input and validated numerics, and any settings the figure adds)."""
+    from elastocap._version import __version__
+    from elastocap.jsonutil import jsonable
+
+    made_by = {"elastocap": __version__, "scene": scene.data,
+               "numerics": vars(scene.numerics), **settings}
+    body = data if isinstance(data, dict) else {"data": data}
+    return jsonable({"made_by": made_by, **body})
+
+
 def run_figures(out_dir, only: str | None = None, fast: bool = False) -> dict:
     """Run every figure (or ``only`` one) into ``out_dir``; return name -> written paths."""
     out = Path(out_dir)

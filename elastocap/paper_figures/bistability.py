@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.statics.bistability import fold_curves, plot_bistability
 
@@ -17,19 +18,15 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     png = out / "bistability.png"
     plot_bistability(scene, bs, curves, "drop.area", png)
     js = out / "bistability.json"
-    js.write_text(
-        json.dumps(
+    data = {
+        "curves": [
             {
-                "curves": [
-                    {
-                        "area": c.p.tolist(),
-                        "delta": c.observables["p"].tolist(),
-                        "extrema": [[float(sp.p), float(sp.u[-1])] for sp in c.folds],
-                    }
-                    for c in curves
-                ]
-            },
-            indent=1,
-        )
-    )
+                "area": c.p.tolist(),
+                "delta": c.observables["p"].tolist(),
+                "extrema": [[float(sp.p), float(sp.u[-1])] for sp in c.folds],
+            }
+            for c in curves
+        ]
+    }
+    js.write_text(json.dumps(record(data, scene, N=bs.metadata["N"]), indent=1))
     return [png, js]

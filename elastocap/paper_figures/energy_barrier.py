@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.strip.barrier import barrier_table, existence_region
 
@@ -80,11 +81,11 @@ def main(out_dir, fast: bool = False) -> list[Path]:
         return v
 
     js = out / "energy_barrier.json"
-    js.write_text(json.dumps(clean({
+    js.write_text(json.dumps(record(clean({
         "units": "energies in mu g l_eg^2 = B / l_eg; lengths in l_eg",
         "region": region,
         "x2": table[0],
         "not_handled": "open state and floppy/rolled encapsulated states (other contact "
                        "topologies); see elastocap.strip.branches.NOT_HANDLED",
-    }), indent=1))
+    }), scene, fast=fast), indent=1))
     return [png, js]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from elastocap.jsonutil import jsonable
+from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.sweep import plot_phase_diagram, run_sweep
 
@@ -42,5 +42,5 @@ def main(out_dir, fast: bool = False, workers: int | None = None) -> list[Path]:
     plot_phase_diagram(res, png, title=f"Fig 3d (model): fig3-strip, damping {FIG3D_DAMPING}, "
                        "draft resolution; paper's criterion, rings: companion disagrees")
     js = out / "fig3d.json"
-    js.write_text(json.dumps(jsonable(res.to_dict()), indent=1))
+    js.write_text(json.dumps(record(res.to_dict(), scene, fast=fast), indent=1))
     return [png, js]

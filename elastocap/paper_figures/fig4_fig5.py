@@ -18,6 +18,7 @@ from pathlib import Path
 
 from elastocap.frames import frame_strip
 from elastocap.impact import run_impact
+from elastocap.paper_figures import record
 from elastocap.paper_figures.fig3d import FIG3D_DAMPING
 from elastocap.scene import load_scene
 
@@ -72,5 +73,5 @@ def main(out_dir, fast: bool = False) -> list[Path]:
                          "final_measure": res.final_measure, "status": res.status,
                          "t_end": res.t_end}
     js = out / "fig4_fig5.json"
-    js.write_text(json.dumps(summary, indent=1))
+    js.write_text(json.dumps(record(summary, scene, fast=fast), indent=1))
     return [*files, js]

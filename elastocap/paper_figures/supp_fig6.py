@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.statics.branches import trace_branches
 from elastocap.statics.plot import plot_branch_set
@@ -30,13 +31,17 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     js = out / "supp-fig6.json"
     js.write_text(
         json.dumps(
-            {
-                "folds": bs.folds,
-                "branch_points": bs.branch_points,
-                "maxwell_points": bs.maxwell_points,
-            },
+            record(
+                {
+                    "folds": bs.folds,
+                    "branch_points": bs.branch_points,
+                    "maxwell_points": bs.maxwell_points,
+                },
+                scene,
+                N=bs.metadata["N"],
+                newton_tol=bs.metadata["newton_tol"],
+            ),
             indent=2,
-            default=str,
         )
     )
     return [png, js]
