@@ -14,6 +14,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from elastocap._version import __version__
+from elastocap.cli_args import load_scene_from_args as _load
+from elastocap.cli_args import scene_arguments as _scene_args
 from elastocap.jsonutil import jsonable
 from elastocap.scene import SceneError, builtin_scene_names, load_scene
 
@@ -31,34 +33,6 @@ class _Parser(argparse.ArgumentParser):
 
 def _print_json(obj) -> None:
     print(json.dumps(jsonable(obj), indent=2, sort_keys=False))
-
-
-def _scene_args(p: argparse.ArgumentParser, default: str | None = None) -> None:
-    if default is None:
-        p.add_argument("scene", help="built-in scene name or path to a TOML file")
-    else:
-        p.add_argument("scene", nargs="?", default=default, help=f"scene (default: {default})")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scene key, e.g. --set drop.area=1.0 (repeatable)",
-    )
-    p.add_argument(
-        "--accuracy",
-        choices=("draft", "default", "publication"),
-        help="resolution and tolerance preset (same as --set numerics.accuracy=...)",
-    )
-
-
-def _load(args):
-    """The scene of a command: name or path, --set overrides, --accuracy."""
-    over = list(args.overrides)
-    if getattr(args, "accuracy", None):
-        over.append(f"numerics.accuracy={args.accuracy}")
-    return load_scene(args.scene, over)
 
 
 def _fmt_block(title: str, d: dict, indent: int = 2) -> list[str]:

@@ -14,15 +14,16 @@ import math
 import sys
 from pathlib import Path
 
+from elastocap.cli_args import load_scene_from_args, scene_arguments
 from elastocap.jsonutil import jsonable
-from elastocap.scene import SceneError, load_scene, parse_override
+from elastocap.scene import SceneError, parse_override
 
 __all__ = ["add_arguments", "run"]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``elastocap sweep`` (the caller adds ``--json``)."""
-    parser.add_argument("scene", help="built-in scene name or path to a TOML file")
+    scene_arguments(parser)
     parser.add_argument(
         "--x",
         required=True,
@@ -71,19 +72,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="auto",
         help="progress on stderr (default: tqdm if installed)",
     )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a scene key, e.g. --set numerics.accuracy=draft",
-    )
-    parser.add_argument(
-        "--accuracy",
-        choices=("draft", "default", "publication"),
-        help="resolution preset of every impact (same as --set numerics.accuracy=...)",
-    )
 
 
 def _validate(args):
@@ -103,9 +91,7 @@ def _validate(args):
             raise SceneError(
                 key, value, "set by the sweep on every point (--x, --we/--delta); remove this --set"
             )
-    if args.accuracy:
-        args.overrides = [*args.overrides, f"numerics.accuracy={args.accuracy}"]
-    scene = load_scene(args.scene, args.overrides)
+    scene = load_scene_from_args(args)
     if "experiment" in scene.data:
         raise SceneError(
             "scene",
