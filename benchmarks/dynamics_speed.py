@@ -211,6 +211,37 @@ def bench_scenes():
               f"{r.steps:7d} steps {r.wall_time:6.3f} s  status {r.status}")
 
 
+def bench_impacts(repeat=3):
+    """The impact runs of issue 5's targets, at default resolution, after compilation:
+    the automatic dt (0.9 of the bound without a ground, 0.5 with one) side by side with
+    the former fixed 0.5, in the same run."""
+    section("3b. impact runs (elastocap impact, default resolution, after compile)")
+    from elastocap.impact import impact_settings, run_impact
+    from elastocap.scene import load_scene
+
+    cases = (("supp-fig5", {}), ("supp-fig5", {"drop.wetted_length": 4.0}),
+             ("fig3-strip", {}))
+    for name, ov in cases:
+        scene = load_scene(name, ov)
+        st = impact_settings(scene)
+        half = scene.with_overrides({"numerics.dt": 0.5 * st["dt_max"]})
+        run_impact(scene)
+        walls = {"auto": [], "0.5": []}
+        for _ in range(repeat):
+            for key, sc in (("auto", scene), ("0.5", half)):
+                r = run_impact(sc)
+                walls[key].append(r.wall_time_s)
+                if key == "auto":
+                    ra = r
+        med = {k: float(np.median(v)) for k, v in walls.items()}
+        label = name + "".join(f" {k}={v}" for k, v in ov.items())
+        frac = ra.settings["dt"] / st["dt_max"]
+        print(f"{label:36s} edges {st['n_edges']:3d}  dt/bound {frac:.2f}"
+              f"  steps {ra.steps:6d}  {ra.outcome:12s} median {med['auto']:.3f} s"
+              f"  (dt 0.5 of bound: {med['0.5']:.3f} s, ratio {med['0.5'] / med['auto']:.2f})"
+              f"  {ra.wall_time_s / ra.steps * 1e6:.2f} us/step")
+
+
 def bench_python_loop(n=100, steps=2000):
     section(f"4. Python call per step vs compiled loop ({n} edges)")
     rod = wavy_rod(n)
@@ -322,6 +353,7 @@ def main(fast=False, dt_bound=False):
     bench_effects(steps=steps, repeat=repeat)
     if not fast:
         bench_scenes()
+    bench_impacts(repeat=1 if fast else 3)
     bench_python_loop()
     bench_shake(repeat=repeat)
     if not fast:

@@ -37,9 +37,10 @@ from dynamics.effects import Gravity
 from dynamics.stepper import RestCriterion, stable_dt
 from elastocap._version import __version__
 from elastocap.capillary import Capillary
+from elastocap.crossings import first_crossing_frames, turning_measures
 from elastocap.drop import capillary_energy_and_gradient
 from elastocap.scene import Scene, SceneError
-from elastocap.statics.shape import arc_points, count_crossings
+from elastocap.statics.shape import arc_points
 
 __all__ = ["ImpactResult", "impact_settings", "run_impact", "turning_measure"]
 
@@ -48,8 +49,30 @@ __all__ = ["ImpactResult", "impact_settings", "run_impact", "turning_measure"]
 #: costs").
 ACCURACY_EDGES = {"draft": 50, "default": 100, "publication": 200}
 _EDGES_PER_DELTA = {"draft": 8, "default": 16, "publication": 32}
-#: Fraction of the explicit stability bound used when numerics.dt = 0.
-DT_FRACTION = 0.5
+#: Fraction of the explicit stability bound used when numerics.dt = 0: 0.9 for a rod that
+#: never touches a ground (measured on supp-fig5 at 100 edges: the final measure moves by
+#: <= 3e-6 between 0.25 and 0.9, and the threshold Delta* stays in the same 6e-5 bracket at
+#: 0.5 and 0.9; bending alone is stable up to 0.50/0.45 = 1.1 of the bound).
+DT_FRACTION = 0.9
+#: With a ground, 0.5: the contact projection (held heights, inelastic landings) is less
+#: tolerant: fig3-strip runs fail at 0.8 of the bound (SHAKE diverges at t = 23) and at 0.9
+#: one run in two needs thousands of substep retries, while 0.5-0.7 run clean (measured).
+DT_FRACTION_GROUND = 0.5
+#: An impact has no energy source (the capillary force and gravity are conservative; the
+#: damping and the perfectly inelastic ground dissipate), so a rise of the total energy
+#: above its running minimum (restarted at each event, which does work) beyond the
+#: integrator's O(dt^2) error is a numerical instability, even when the run goes on.
+#: Measured rises, in units of gamma Delta: <= 3.3e-4 in healthy runs (fig3-strip at 0.9 of
+#: the bound); 0.7 to 300 in unstable ones (strong capillarity closing the wrap); and
+#: 0.01-0.2, shrinking with dt, where the contact lines nearly meet inside a closed wrap
+#: (supp-fig5 at Delta = 4.5 ~ L), where the cap model is singular. Above ENERGY_RISE_TOL
+#: the run is repeated with a smaller automatic dt and, if it persists, flagged; above
+#: ENERGY_RISE_FAIL (the capillary energy scale itself) it has no outcome.
+ENERGY_RISE_TOL = 1e-2
+ENERGY_RISE_FAIL = 1.0
+#: With an automatic dt (numerics.dt = 0), a run that fails numerically or whose energy
+#: rises is repeated with dt halved, at most this many times (the JSON says so).
+DT_RETRIES = 2
 #: Time between output frames when none are requested: crossings are detected on frames,
 #: so this is the resolution of their reported times (0.05 = 1/170 of the period of the
 #: slowest free-free mode of supp-fig5's rod).
@@ -92,6 +115,7 @@ class ImpactResult:
     rod_crossing_time: float | None
     interface_crossing_time: float | None
     decided_after_crossing: bool
+    energy_rise: float
     settings: dict
     simulation: object = field(repr=False, default=None)
     measure_history: np.ndarray = field(repr=False, default=None)
@@ -99,6 +123,43 @@ class ImpactResult:
     def to_dict(self) -> dict:
         d = {k: v for k, v in self.__dict__.items() if k not in ("simulation", "measure_history")}
         return d
+
+
+def energy_rise(times, total, event_times) -> tuple[float, float]:
+    """Largest rise of the total energy above its running minimum, and when it peaks.
+
+    The minimum restarts at each event time (an event does work on the rod). Energies are
+    those of the output frames; returns (rise, time), (0, 0) for a non-increasing energy.
+    """
+    times = np.asarray(times, float)
+    total = np.asarray(total, float)
+    rise = np.zeros_like(total)
+    if rise.size == 0:
+        return 0.0, 0.0
+    # segments strictly between events; a frame at an event's time may hold the energy
+    # before or after it, so it belongs to neither
+    eps = 1e-9 * max(1.0, float(times[-1]))
+    edges = [-math.inf, *sorted(event_times), math.inf]
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        idx = np.nonzero((times > a + eps) & (times < b - eps))[0]
+        if a == -math.inf:
+            idx = np.nonzero(times < b - eps)[0]
+        if idx.size:
+            seg = total[idx]
+            rise[idx] = seg - np.minimum.accumulate(seg)
+    if not np.all(np.isfinite(rise)):
+        return math.inf, float(times[np.argmin(np.isfinite(rise))])
+    k = int(np.argmax(rise))
+    return float(rise[k]), float(times[k])
+
+
+def _rise_message(rise, scale, t_rise):
+    return (
+        f"the total energy rose by {rise:.3g} ({rise / scale:.3g} gamma Delta, tolerance "
+        f"{ENERGY_RISE_TOL:g}) by t = {t_rise:.4g}, with no energy source in the model: "
+        "a time-integration error (a numerical instability, or the stiffness of the drop "
+        "closing inside the wrap, beyond the bending time-step bound)."
+    )
 
 
 def impact_settings(scene: Scene) -> dict:
@@ -111,7 +172,7 @@ def impact_settings(scene: Scene) -> dict:
     )
     h = L / n
     dt_max = stable_dt(np.full(n, h), scene.rod.mass_per_length, scene.rod.bending_modulus)
-    dt = num.dt or DT_FRACTION * dt_max
+    dt = num.dt or (DT_FRACTION_GROUND if scene.effects.ground else DT_FRACTION) * dt_max
     if dt > dt_max:
         raise SceneError(
             "numerics.dt",
@@ -174,48 +235,53 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
     t0 = time.perf_counter()
     st = impact_settings(scene)
     n, L = st["n_edges"], scene.rod.length
-    x0 = np.zeros((n + 1, 2))
-    x0[:, 0] = np.linspace(0.0, L, n + 1)
-    rod = Rod(
-        x0,
-        np.zeros_like(x0),
-        np.full(n, L / n),
-        scene.rod.mass_per_length,
-        scene.rod.bending_modulus,
-    )
     effects, events = _effects(scene)
     for ev in events:
         if ev.time > st["t_max"]:
             raise SceneError("drop.events", ev.time, f"event after numerics.t_max = {st['t_max']}")
-    sim = simulate(
-        rod,
-        effects,
-        dt=st["dt"],
-        t_end=st["t_max"],
-        frames=frames or min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
-        events=events,
-        rest=RestCriterion(st["rest_kinetic"], st["rest_time"]),
-    )
+    scale = scene.drop.line_tension * scene.drop.wetted_length
+    retries = DT_RETRIES if not scene.numerics.dt else 0
+    rejected = []
+    for attempt in range(retries + 1):
+        x0 = np.zeros((n + 1, 2))
+        x0[:, 0] = np.linspace(0.0, L, n + 1)
+        rod = Rod(
+            x0,
+            np.zeros_like(x0),
+            np.full(n, L / n),
+            scene.rod.mass_per_length,
+            scene.rod.bending_modulus,
+        )
+        effects, events = _effects(scene)
+        sim = simulate(
+            rod,
+            effects,
+            dt=st["dt"],
+            t_end=st["t_max"],
+            frames=frames or min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
+            events=events,
+            rest=RestCriterion(st["rest_kinetic"], st["rest_time"]),
+        )
+        rise, t_rise = energy_rise(sim.times, sim.energies["total"], [e.time for e in events])
+        if (sim.success and rise <= ENERGY_RISE_TOL * scale) or attempt == retries:
+            break
+        why = sim.message if not sim.success else _rise_message(rise, scale, t_rise)
+        rejected.append(f"dt = {st['dt']:.4g}: {why}")
+        st["dt"] *= 0.5
+    st["dt_retries"] = len(rejected)
     s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
-    measures = np.array([turning_measure(p) for p in sim.positions])
+    measures = turning_measures(sim.positions)
     # crossings, frame by frame, with the contact lines in force at that time
-    rod_t = if_t = None
     cap = effects[0].params.copy()
     cap[1:3] = _wet_interval(scene)
-    fired = list(sim.events_fired)
-    for k, (tk, pos) in enumerate(zip(sim.times, sim.positions, strict=True)):
-        if rod_t is not None and if_t is not None:
-            break
-        while fired and fired[0][0] <= tk + 1e-12:
-            _, _, j, val = fired.pop(0)
-            cap[j] = val
-        if rod_t is None and count_crossings(pos, pos, True, 0, n) > 0:
-            rod_t = float(tk)
-        if if_t is None and k > 0:
-            iface, _tau = _interface(pos, s_nodes, cap[0], cap[1], cap[2], cap[3])
-            m = iface.shape[0]
-            if count_crossings(iface, pos, False, 1, m - 2) > 0:
-                if_t = float(tk)
+    cap_frames = np.repeat(cap[None], len(sim.times), axis=0)
+    for t_ev, name, j, val in sim.events_fired:
+        if name == effects[0].name:
+            cap_frames[np.asarray(sim.times) >= t_ev - 1e-12, j] = val
+    k_rod, k_if = first_crossing_frames(sim.positions, s_nodes, cap_frames)
+    rod_t = float(sim.times[k_rod]) if k_rod >= 0 else None
+    if_t = float(sim.times[k_if]) if k_if >= 0 else None
+    cap = cap_frames[-1]
     final = sim.positions[-1]
     M = float(measures[-1])
     impact_s = scene.drop.center
@@ -231,7 +297,20 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
     crossed = [t for t in (rod_t, if_t) if t is not None]
     outcome = "encapsulated" if enc else "open"
     message = sim.message
-    if not sim.success:
+    status = sim.status
+    unstable = sim.success and rise > ENERGY_RISE_FAIL * scale
+    if sim.success and rise > ENERGY_RISE_TOL * scale:
+        message += (
+            " WARNING: "
+            + _rise_message(rise, scale, t_rise)
+            + (f" Try a smaller numerics.dt (this run: {st['dt']:.4g}).")
+        )
+    if rejected:
+        message += " Automatic dt halved after: " + "; ".join(rejected)
+    if unstable:
+        outcome = "failed"
+        status = "energy_rise"
+    elif not sim.success:
         # a failed run has no outcome: say what failed, and whether the contact lines met
         outcome = "failed"
         d = float(
@@ -267,13 +346,14 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
         t_end=t_end,
         steps=int(sim.steps),
         wall_time_s=time.perf_counter() - t0,
-        status=sim.status,
+        status=status,
         message=message,
         end_position=x_end,
         impact_position=x_imp,
         rod_crossing_time=rod_t,
         interface_crossing_time=if_t,
         decided_after_crossing=bool(crossed) and min(crossed) <= t_end,
+        energy_rise=rise / scale,
         settings={
             **st,
             "scene": scene.name,
