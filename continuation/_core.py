@@ -541,6 +541,25 @@ class _LocateError(Exception):
     pass
 
 
+#: Slack of the bracket check of a located fold, relative to (1 + |p|): the fold's Newton
+#: stops at locate_tol ~ 1e-12, so 1e-10 never rejects a correct fold.
+FOLD_BRACKET_SLACK = 1e-10
+#: ... and how far beyond the bracket a fold may lie, in bracket widths (p is quadratic
+#: in s near a fold, so the extremum overshoots the bracketing values by a fraction of it).
+FOLD_BRACKET_REACH = 10.0
+
+
+def _fold_in_bracket(pf, slope, pa, pb):
+    """Whether ``pf`` can be the extremum of p on a continuation step from ``pa`` to ``pb``
+    whose dp/ds at ``pa`` is ``slope``: a maximum (slope > 0) lies at or beyond both
+    values, a minimum at or below both, and within FOLD_BRACKET_REACH step widths."""
+    slack = FOLD_BRACKET_SLACK * (1.0 + abs(pf))
+    span = abs(pb - pa) + 1e-12 * (1.0 + abs(pb))
+    if slope > 0:
+        return max(pa, pb) - slack <= pf <= max(pa, pb) + FOLD_BRACKET_REACH * span
+    return min(pa, pb) - FOLD_BRACKET_REACH * span <= pf <= min(pa, pb) + slack
+
+
 def _detect(core, run, k, skip_first=False):
     """Detect (and locate) special points between points k-1 and k.
 
@@ -560,18 +579,32 @@ def _detect(core, run, k, skip_first=False):
         sp = SpecialPoint("fold", k, run.p[j], run.u[j].copy(),
                           abs(run.p[k] - run.p[k - 1]), False, "", {})
         if s.locate:
-            uf, pf, kern, ok, prec, its, msg = _locate_fold(
-                core.ev, run.u[j], run.p[j], run.t[j], s.locate_tol, ftol=s.newton_tol)
-            # A located fold must lie near the bracket; else keep the bracket.
-            span = abs(run.p[k] - run.p[k - 1]) + 1e-12 * (1 + abs(run.p[k]))
-            if ok and abs(pf - run.p[j]) <= 10 * span:
-                sp.p, sp.u, sp.precision, sp.located = float(pf), uf, prec, True
-                sp.data["kernel"] = kern
-                obs, _ = core.observe(uf, pf)
-                sp.data["observables"] = obs
-            sp.data["iterations"] = its
-            if msg:
-                sp.data["message"] = msg
+            # Newton from the end nearer the fold first, then from the other end: with two
+            # folds within one step (near a cusp) the first can converge to the fold
+            # outside the bracket.
+            other = []
+            for jj in (j, 2 * k - 1 - j):
+                uf, pf, kern, ok, prec, its, msg = _locate_fold(
+                    core.ev, run.u[jj], run.p[jj], run.t[jj], s.locate_tol,
+                    ftol=s.newton_tol)
+                sp.data["iterations"] = sp.data.get("iterations", 0) + its
+                if msg:
+                    sp.data["message"] = msg
+                if ok and _fold_in_bracket(pf, ta[n], run.p[k - 1], run.p[k]):
+                    sp.p, sp.u, sp.precision, sp.located = float(pf), uf, prec, True
+                    sp.data["kernel"] = kern
+                    obs, _ = core.observe(uf, pf)
+                    sp.data["observables"] = obs
+                    sp.data.pop("message", None)
+                    break
+                if ok:
+                    other.append(float(pf))
+            if not sp.located and other:
+                lo, hi = sorted((run.p[k - 1], run.p[k]))
+                sp.data["message"] = (
+                    f"fold bracketed in [{lo:.12g}, {hi:.12g}] but its Newton converged to "
+                    f"another fold at {other[0]:.12g} (two folds within one step, e.g. "
+                    "near a cusp); reduce the continuation step")
         run.sps.append(sp)
     # ---- branch points: the bordered determinant changes sign
     if s.detect_branch_points and not skip_first and run.det[k - 1] * run.det[k] < 0:

@@ -457,65 +457,11 @@ def _fold_error(problem: WetElasticaProblem, sp) -> float:
     return abs(fine_sp.p - sp.p)
 
 
-#: Slack of the bracket check of a located fold, relative to (1 + |p|): the fold's Newton
-#: stops at locate_tol ~ 1e-12, so 1e-10 never rejects a correct fold.
-_FOLD_BRACKET_SLACK = 1e-10
-
-
-def _fold_in_bracket(br: Branch, k: int, pf: float) -> bool | None:
-    """Whether a fold located at ``pf`` is the extremum of p on the arc (k-1, k).
-
-    p is largest (a maximum) or smallest (a minimum) at the fold, so ``pf`` must lie at or
-    beyond both bracketing values on the side given by dp/ds at k-1. None when undecidable.
-    """
-    if not 1 <= k < len(br):
-        return None
-    if br.tangent is not None:
-        slope = float(br.tangent[k - 1][-1])
-    elif k >= 2:
-        slope = float(br.p[k - 1] - br.p[k - 2])
-    else:
-        return None
-    a, c = float(br.p[k - 1]), float(br.p[k])
-    slack = _FOLD_BRACKET_SLACK * (1.0 + abs(pf))
-    return pf >= max(a, c) - slack if slope > 0 else pf <= min(a, c) + slack
-
-
-def _relocate_fold(problem, par, br: Branch, sp) -> None:
-    """Check a located fold against its bracket; relocate it from the bracket's ends if
-    Newton went to another fold (two folds within one continuation step, e.g. near a cusp),
-    or mark it unlocated with a message saying so."""
-    k = sp.index
-    if not sp.located or _fold_in_bracket(br, k, sp.p) is not False or br.u is None:
-        return
-    first = sp.p
-    for j in (k - 1, k):
-        problem.set(par, float(br.p[j]))
-        v = None if br.tangent is None else br.tangent[j]
-        cand = locate_fold(problem, br.u[j], float(br.p[j]), v=v)
-        if cand.located and _fold_in_bracket(br, k, cand.p):
-            sp.p, sp.u, sp.precision = cand.p, cand.u, cand.precision
-            sp.data["kernel"] = cand.data["kernel"]
-            sp.data["relocated_from"] = first
-            return
-    sp.located = False
-    sp.p = 0.5 * float(br.p[k - 1] + br.p[k])
-    sp.u = None
-    sp.data["message"] = (
-        f"fold bracketed in [{min(br.p[k - 1], br.p[k]):.12g}, "
-        f"{max(br.p[k - 1], br.p[k]):.12g}] but its Newton converged to another fold at "
-        f"{first:.12g} (two folds within one step, e.g. near a cusp); "
-        "reduce the continuation step or trace a narrower --range"
-    )
-
-
 def _collect_special_points(result: BranchSet, error_estimates: bool) -> None:
     problem = result.problem
     par = result.parameter
     for b, br in enumerate(result.branches):
         for sp in br.special_points:
-            if sp.kind == "fold":
-                _relocate_fold(problem, par, br, sp)
             obs = {}
             if sp.u is not None:
                 problem.set(par, sp.p)

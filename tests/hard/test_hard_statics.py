@@ -150,34 +150,3 @@ def test_high_resolution_n64_is_stable():
 def test_too_coarse_resolution_is_refused_clearly():
     with pytest.raises(SceneError, match=r"^numerics.cheb_points: got 3; expected at least 4"):
         problem_for(load_scene("supp-fig5"), N=3)
-
-
-def test_fold_that_cannot_be_relocated_says_so(monkeypatch):
-    """If Newton lands on the neighbouring fold and no retry from the bracket's ends finds
-    the right one, the fold is reported bracketed (located False) with a message saying why
-    and what to try, never as a second copy of the other fold."""
-    import copy
-
-    from continuation import SpecialPoint
-    from elastocap.statics import branches
-
-    bs = trace_branches(load_scene("supp-fig5", {"drop.area": 1.74}), error_estimates=False)
-    br = bs.branches[0]
-    lo, hi = sorted((sp for sp in br.folds), key=lambda sp: sp.p)
-    wrong = copy.copy(hi)
-    wrong.data = dict(hi.data)
-    wrong.p = lo.p  # the maximum's bracket, located on the minimum
-    monkeypatch.setattr(
-        branches,
-        "locate_fold",
-        lambda *a, **k: SpecialPoint("fold", -1, lo.p, lo.u, 1e-15, True, "", {"kernel": None}),
-    )
-    branches._relocate_fold(bs.problem, bs.parameter, br, wrong)
-    assert not wrong.located and wrong.u is None
-    assert (
-        min(br.p[hi.index - 1], br.p[hi.index])
-        <= wrong.p
-        <= max(br.p[hi.index - 1], br.p[hi.index])
-    )
-    assert "converged to another fold" in wrong.data["message"]
-    assert "reduce the continuation step" in wrong.data["message"]
