@@ -21,6 +21,7 @@ from .effects import (
     Ground,
     PointLoad,
 )
+from .implicit import compile_implicit, simulate_implicit
 from .reference import euler_bernoulli_omega
 from .rod import Rod
 from .stepper import (
@@ -36,6 +37,8 @@ from .stepper import (
 __all__ = [
     "Rod",
     "simulate",
+    "simulate_implicit",
+    "compile_implicit",
     "Event",
     "RestCriterion",
     "SimulationResult",
