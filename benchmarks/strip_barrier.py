@@ -1,0 +1,134 @@
+"""Energy barrier of the strip of Fig 3 (issue 8): table over x and Delta, bistability
+window, convergence in n, timings.
+
+    python3 benchmarks/strip_barrier.py [--fast] [--out DIR] [--n N] [--n-fine M]
+
+Writes ``strip_barrier.json`` (one record per (x, Delta), the windows) and prints a table;
+about 5 min on 2 shared cores (``--fast``: one point, 10 s). Small
+dense LAPACK calls (101 x 101 eigh) run ~100x slower with multi-threaded OpenBLAS on a
+loaded 2-core machine (measured 1.8 ms single-threaded against 176 ms), hence one thread.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from elastocap.scene import load_scene  # noqa: E402
+from elastocap.strip.barrier import flat_energy, kinetic_energy  # noqa: E402
+from elastocap.strip.discrete import (  # noqa: E402
+    DiscreteStrip,
+    minimize_energy,
+    prolong,
+    refine,
+)
+from elastocap.strip.mep import (  # noqa: E402
+    barrier,
+    continue_in_delta,
+    is_encapsulated,
+    open_state,
+    wrapped_state,
+)
+
+L, AREA, GAMMA = 14.3, 0.36, 40.0
+
+
+def window(x, n, d_lo=0.5, d_hi=2.2, d_start_open=0.6, d_start_wrap=1.6, step=0.05):
+    """Delta range of the open branch (continued up from d_start_open) and of the wrapped
+    branch (continued down from d_start_wrap), each to 1e-3; a branch also ends where the
+    state changes kind (open <-> encapsulated)."""
+    out = {}
+    s = DiscreteStrip(n, L, x, d_start_open, AREA, GAMMA)
+    op = open_state(s)
+    up = continue_in_delta(s, op, np.arange(d_start_open + step, d_hi + 1e-9, step))
+    out["open_max"] = up[-1][0] if up else d_start_open
+    s = DiscreteStrip(n, L, x, d_start_wrap, AREA, GAMMA)
+    wr = wrapped_state(s)
+    dn = continue_in_delta(s, wr, np.arange(d_start_wrap - step, d_lo - 1e-9, -step))
+    out["wrapped_min"] = dn[-1][0] if dn else d_start_wrap
+    return out
+
+
+def barrier_row(sc, x, d, n, n_fine=None):
+    """Barrier at (x, Delta) with a string at n edges, optionally carried to n_fine."""
+    t = time.perf_counter()
+    S = DiscreteStrip(n, L, x, d, AREA, GAMMA)
+    r = barrier(S)
+    row = {k: v for k, v in r.summary().items() if k != "ends"}
+    row["time"] = time.perf_counter() - t
+    if n_fine and r.status == "ok":
+        t = time.perf_counter()
+        Sf = S.with_(n=n_fine)
+        sad = refine(S, r.saddle, Sf)
+        op = minimize_energy(Sf, prolong(S, r.open.u, Sf))
+        wr = minimize_energy(Sf, prolong(S, r.wrapped.u, Sf))
+        row["fine"] = {
+            "n": n_fine, "e_open": op.energy, "e_saddle": sad.energy, "e_wrapped": wr.energy,
+            "barrier": sad.energy - op.energy, "saddle_index": sad.index,
+            "ok": bool(sad.success and sad.index == 1 and op.index == 0 and wr.index == 0
+                       and not is_encapsulated(Sf, op.u) and is_encapsulated(Sf, wr.u)),
+            "time": time.perf_counter() - t,
+        }
+    we = sc.spreading.we_sqrt(d)
+    row["we_sqrt"] = we
+    row["kinetic"] = kinetic_energy(sc, max(we, 0.0) ** 2)
+    row["e_flat"] = flat_energy(AREA, GAMMA, d)
+    return row
+
+
+def main(out_dir="out/strip_barrier", fast=False, n=143, n_fine=429):
+    """Table of barriers and the bistability windows; returns (rows, windows).
+
+    n = 143 (h = 0.1): with x a multiple of 0.5 and Delta of 0.1, the contact lines sit at
+    nodes or at mid-edge, and stay there at n_fine = 3 n (the error constant of the
+    second-order convergence depends on where they sit in their edge).
+    """
+    os.makedirs(out_dir, exist_ok=True)
+    sc = load_scene("fig3-strip")
+    if fast:
+        pts = [(3.0, 1.1)]
+        n_fine = None
+    else:
+        pts = ([(1.5, 0.9), (2.0, 0.9)] + [(3.0, d) for d in (0.8, 0.9, 1.0, 1.1, 1.2, 1.25)]
+               + [(4.0, d) for d in (0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5)])
+    rows = []
+    for x, d in pts:
+        row = barrier_row(sc, x, d, n, n_fine)
+        rows.append(row)
+        fine = row.get("fine", {})
+        print(f"x={x:4.1f} D={d:4.2f} n={n} {row['status']:>16s} E_open={row['e_open']:9.4f} "
+              f"E_sad={row['e_saddle']:9.4f} E_wr={row['e_wrapped']:9.4f} "
+              f"barrier={row['barrier']:8.4f} (n={fine.get('n', '-')}: "
+              f"{fine.get('barrier', float('nan')):8.4f}) Ek={row['kinetic']:7.2f} "
+              f"t={row['time']:5.1f}s", flush=True)
+    windows = []
+    if not fast:
+        for x in (1.5, 2.0, 3.0, 4.0):
+            t = time.perf_counter()
+            w = window(x, 100)
+            w.update(x=x, n=100, time=time.perf_counter() - t)
+            windows.append(w)
+            print(f"x={x}: open branch up to Delta = {w['open_max']:.3f}, wrapped branch down "
+                  f"to Delta = {w['wrapped_min']:.3f} (n = 100)", flush=True)
+    with open(os.path.join(out_dir, "strip_barrier.json"), "w") as f:
+        json.dump({"rows": rows, "windows": windows}, f, indent=1)
+    return rows, windows
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--fast", action="store_true")
+    ap.add_argument("--out", default="out/strip_barrier")
+    ap.add_argument("--n", type=int, default=143)
+    ap.add_argument("--n-fine", type=int, default=429)
+    a = ap.parse_args()
+    main(a.out, a.fast, a.n, a.n_fine)
+    sys.exit(0)

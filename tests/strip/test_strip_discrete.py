@@ -1,0 +1,242 @@
+"""The discrete strip on the ground (elastocap.strip.discrete): the same energy as the
+dynamic model, exact derivatives, closed forms, and second-order convergence to the
+spectral solver where its topology applies. Tolerances are written next to each assertion."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+# one OpenBLAS thread for this module (see the fixture's docstring)
+from test_strip_mep import one_blas_thread  # noqa: F401, E402
+
+from dynamics.bending import bending_energy, bending_gradient
+from elastocap.capillary import capillary_kernel
+from elastocap.drop import capillary_energy_and_gradient
+from elastocap.scene import load_scene
+from elastocap.statics.branches import newton
+from elastocap.strip.branches import seeds, strip_problem_for
+from elastocap.strip.discrete import (
+    DiscreteStrip,
+    capillary_hessian_nodes,
+    discrete_strip_for,
+    flat_state,
+    minimize_energy,
+    solve_equilibrium,
+)
+from elastocap.strip.problem import StripProblem
+from elastocap.strip.shape import shape_at
+
+L = 14.3
+
+
+def random_state(strip, seed=0, amp=0.05):
+    rng = np.random.default_rng(seed)
+    return np.concatenate([[0.1], np.cumsum(amp * rng.standard_normal(strip.n))])
+
+
+def observed_order(ns, errs):
+    return -np.polyfit(np.log(ns), np.log(errs), 1)[0]
+
+
+# ------------------------------------------------------------------ the energy
+def test_energy_is_the_dynamic_models_potential():
+    # bending (dynamics.bending, DER), gravity with lumped masses (dynamics Gravity) and the
+    # capillary effect of the impact run: the same number to round-off, and the gradient
+    # is the chain rule of the same node forces
+    S = DiscreteStrip(80, L, 2.0, 1.1, 0.36, 40.0)
+    u = random_state(S)
+    X = np.ascontiguousarray(S.positions(u))
+    el = np.full(S.n, S.h)
+    mass = np.full(S.n + 1, S.h)
+    mass[[0, -1]] = 0.5 * S.h
+    fcap = np.zeros_like(X)
+    e_cap = capillary_kernel(X, np.zeros_like(X), 0.0, np.array([0.36, S.s1, S.s2, 40.0]),
+                             el, mass, fcap)
+    e_dyn = bending_energy(X, el, 1.0) + float(mass @ X[:, 1]) + e_cap
+    assert abs(S.energy(u) - e_dyn) < 1e-12 * abs(e_dyn)
+    gX = np.zeros_like(X)
+    bending_gradient(X, el, 1.0, gX)
+    gX[:, 1] += mass
+    gX -= fcap
+    # dX_k/dtheta_j = h (-sin, cos) theta_j for k > j; dX_k/dz0 = (0, 1)
+    suffix = np.cumsum(gX[::-1], axis=0)[::-1]
+    th = u[1:]
+    g_chain = np.concatenate([[suffix[0, 1]],
+                              S.h * (-np.sin(th) * suffix[1:, 0] + np.cos(th) * suffix[1:, 1])])
+    assert np.max(np.abs(S.gradient(u) - g_chain)) < 1e-11 * np.max(np.abs(g_chain))
+
+
+def test_gradient_and_hessian_against_finite_differences():
+    S = DiscreteStrip(60, L, 3.0, 1.3, 0.36, 40.0, F=0.3)
+    u = random_state(S, seed=3)
+    E, g, H = S.derivatives(u)
+    eps = 1e-6
+    I = np.eye(S.size)
+    gfd = np.array([(S.energy(u + eps * e) - S.energy(u - eps * e)) / (2 * eps) for e in I])
+    Hfd = np.array([(S.gradient(u + eps * e) - S.gradient(u - eps * e)) / (2 * eps) for e in I])
+    # central differences: error ~ eps^2 E''' + round-off E / eps ~ 1e-8 of |g| (|g| ~ 14)
+    assert np.max(np.abs(g - gfd)) < 1e-7 * np.max(np.abs(g))
+    assert np.max(np.abs(H - Hfd)) < 1e-7 * np.max(np.abs(H))
+    assert np.array_equal(H, H.T)
+
+
+def test_capillary_node_hessian_against_its_gradient():
+    # the hand-assembled Hessian of gamma lambda (cap kernels of elastocap.drop) against
+    # central differences of the exact gradient of elastocap.drop
+    S = DiscreteStrip(40, L, 3.0, 1.1, 0.36, 40.0)
+    X = S.positions(random_state(S, seed=5, amp=0.2))
+    i1, H = capillary_hessian_nodes(X, S.s_nodes, S.s1, S.s2, S.area, S.gamma)
+    m = H.shape[0] // 2
+
+    def grad(Y):
+        g = np.zeros_like(Y)
+        capillary_energy_and_gradient(Y, S.s_nodes, S.s1, S.s2, S.area, S.gamma, g)
+        return g[i1 : i1 + m].ravel()
+
+    eps = 1e-6
+    Hfd = np.zeros_like(H)
+    for a in range(2 * m):
+        Yp, Ym = X.copy(), X.copy()
+        Yp[i1 + a // 2, a % 2] += eps
+        Ym[i1 + a // 2, a % 2] -= eps
+        Hfd[:, a] = (grad(Yp) - grad(Ym)) / (2 * eps)
+    assert np.max(np.abs(H - Hfd)) < 1e-6 * np.max(np.abs(H))
+
+
+def test_invalid_input_named():
+    with pytest.raises(ValueError, match="n: got 2"):
+        DiscreteStrip(2, L, 2.0, 1.1, 0.36, 40.0)
+    with pytest.raises(ValueError, match="expected 0 < S1 < S2 < L"):
+        DiscreteStrip(50, L, 0.3, 1.1, 0.36, 40.0)
+    sc = load_scene("supp-fig5")
+    with pytest.raises(ValueError, match="gravity > 0 and ground = true"):
+        discrete_strip_for(sc, 50)
+
+
+# ------------------------------------------------------------------ closed forms
+def test_heavy_strip_stays_flat_with_lumped_reactions():
+    # no drop: the flat strip is an exact equilibrium, every node on the ground carries
+    # its lumped weight q h (q h / 2 at the ends), and it is stable
+    S = DiscreteStrip(50, L, 2.0, 1.1, 0.36, 0.0, q=1.3)
+    eq = solve_equilibrium(S, flat_state(S))
+    assert eq.success and eq.residual < 1e-12, eq.message
+    w = np.full(S.n + 1, S.q * S.h)
+    w[[0, -1]] *= 0.5
+    # the reactions come out of one KKT solve (condition ~1e5): 1e-10 absolute, 3e-10 of q h
+    assert np.max(np.abs(eq.reactions - w)) < 1e-10
+    assert eq.index == 0 and eq.contacts == S.n + 1
+    # from a lifted, bent start the descent comes back to it
+    u = random_state(S, seed=2, amp=0.02)
+    u[0] = 0.3
+    eq2 = minimize_energy(S, u)
+    assert eq2.success and np.max(np.abs(eq2.u)) < 1e-10
+    assert np.max(np.abs(eq2.reactions - w)) < 1e-10
+
+
+def test_end_force_linear_lift_off():
+    # Linear beam theory for a heavy strip lifted by F at its end: lifted length 2F/q,
+    # end height q l^4 / (24 B). F = 0.5: l = 1 (slope 1/12: nonlinear terms ~1e-2);
+    # with n = 286 edges h = 0.05, the last contact node lies within 1.5 h of it.
+    F = 0.5
+    S = DiscreteStrip(286, L, 2.0, 1.1, 0.36, 0.0, F=F)
+    eq = solve_equilibrium(S, flat_state(S))
+    assert eq.success, eq.message
+    z = S.heights(eq.u)
+    last = int(np.flatnonzero(eq.active)[-1])
+    ell = L - S.s_nodes[last]
+    assert abs(ell - 2 * F) <= 1.5 * S.h, ell
+    assert abs(z[-1] / (1.0 / 24.0) - 1.0) < 0.03, z[-1]
+    # ground reactions carry the weight not held by F; all >= 0
+    assert abs(eq.reactions.sum() - (S.q * L - F)) < 1e-10
+    assert eq.reactions.min() >= 0.0 and eq.index == 0
+
+
+def spectral_end_force(F):
+    P = StripProblem(16, L, 0.3, 0.2, 0.36, 0.0, F=F, parameter="end_force")
+    u0 = np.zeros(P.n)
+    u0[-1] = L - 2.0 * F
+    u = newton(P, u0, F, tol=1e-11, max_iter=60)
+    return P, u
+
+
+def test_end_force_nonlinear_second_order():
+    # F = 1: the lifted length is ~2 with slopes up to 0.9 rad. The end height converges to
+    # the spectral solution (itself equal to ODE shooting to 1e-9) at second order in h.
+    P, u = spectral_end_force(1.0)
+    z_ref = P.state(u).z[-1]
+    ns = np.array([100, 200, 400])
+    errs = []
+    for n in ns:
+        S = DiscreteStrip(int(n), L, 2.0, 1.1, 0.36, 0.0, F=1.0)
+        eq = solve_equilibrium(S, flat_state(S))
+        assert eq.success and eq.index == 0, eq.message
+        errs.append(abs(S.heights(eq.u)[-1] - z_ref))
+    order = observed_order(ns, errs)
+    # measured order 2.0; the lift-off between nodes adds an O(h^3) wobble
+    assert 1.7 < order < 2.4, f"observed order {order:.2f}, errors {errs}"
+    assert errs[-1] < 5e-4, errs
+
+
+# ------------------------------------------------------------------ against the spectral solver
+def spectral_wrapped(x=2.0, delta=1.1):
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": x, "drop.wetted_length": delta})
+    P = strip_problem_for(sc, N=16)
+    for s in seeds(P):
+        u = newton(P, s, delta, 1e-11, max_iter=40)
+        if u is not None and u[-1] < P.s1:
+            return P, u
+    raise AssertionError("no wrapped equilibrium")
+
+
+def discrete_from_spectral(P, u, n, x=2.0, delta=1.1):
+    S = DiscreteStrip(n, L, x, delta, 0.36, 40.0)
+    X = shape_at(P, u, S.s_nodes)
+    d = np.diff(X, axis=0)
+    u0 = np.concatenate([[0.0], np.unwrap(np.arctan2(d[:, 1], d[:, 0]))])
+    return S, solve_equilibrium(S, u0)
+
+
+def test_wrapped_state_converges_to_spectral_at_second_order():
+    # x = 2, Delta = 1.1: the encapsulated state has the spectral solver's topology (flat on
+    # [0, s_c], lifted beyond). Measured energy gaps 0.3162, 0.07653, 0.01915 at n = 100,
+    # 200, 400: order 2.02.
+    P, u = spectral_wrapped()
+    ob = P.observables(u, 1.1)
+    ns = np.array([100, 200, 400])
+    de, dz = [], []
+    for n in ns:
+        S, eq = discrete_from_spectral(P, u, int(n))
+        assert eq.success and eq.index == 0 and eq.degenerate == 0, eq.message
+        assert eq.reactions.min() >= 0.0
+        # one contact set: the flat part, nothing touches beyond it
+        act = np.flatnonzero(eq.active)
+        assert np.array_equal(act, np.arange(act.size))
+        assert abs(act.size * S.h - ob["lift_off"]) < 3 * S.h
+        de.append(abs(eq.energy - ob["energy"]))
+        dz.append(abs(S.heights(eq.u)[-1] - ob["end_height"]))
+    oe, oz = observed_order(ns, de), observed_order(ns, dz)
+    assert 1.8 < oe < 2.3, f"energy: observed order {oe:.2f}, gaps {de}"
+    assert 1.8 < oz < 2.6, f"end height: observed order {oz:.2f}, gaps {dz}"
+    assert de[-1] < 0.025 and dz[-1] < 0.01, (de, dz)
+
+
+def test_open_state_at_large_x_is_stable_with_positive_reactions():
+    # x = 4, Delta = 1.1 (fig3-strip scene): descent from the flat strip stays open; the
+    # drop lifts the strip around it and the rest lies on the ground.
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": 4.0, "drop.wetted_length": 1.1})
+    S = discrete_strip_for(sc, 100)
+    eq = minimize_energy(S, flat_state(S))
+    assert eq.success and eq.index == 0, eq.message
+    assert eq.residual < 1e-9
+    assert eq.reactions[eq.active].min() > 0.0
+    assert np.all(eq.reactions[~eq.active] == 0.0)
+    z = S.heights(eq.u)
+    assert z.min() > -1e-12
+    # the free end still lies on the ground and the strip is not folded
+    assert eq.active[-1] and abs(eq.u[-1]) < 1e-9
+    X = S.positions(eq.u)
+    assert X[-1, 0] > np.interp(S.L - S.x_end, S.s_nodes, X[:, 0])
+    assert math.isclose(eq.energy, sum(eq.parts.values()), rel_tol=1e-14)
