@@ -17,7 +17,7 @@ import math
 import numba
 import numpy as np
 
-from elastocap.drop import capillary_energy_and_gradient
+from elastocap.drop import _locate, capillary_energy_and_gradient
 from elastocap.statics.shape import count_crossings
 
 __all__ = ["INTERFACE_POINTS", "first_crossing_frames", "turning_measures"]
@@ -29,21 +29,8 @@ INTERFACE_POINTS = 80
 @numba.njit(cache=True)
 def _point_at(x, s_nodes, s):
     """Position at arclength s on the polyline (linear interpolation, clipped to the ends)."""
-    n = s_nodes.shape[0]
-    if s <= s_nodes[0]:
-        return x[0, 0], x[0, 1]
-    if s >= s_nodes[n - 1]:
-        return x[n - 1, 0], x[n - 1, 1]
-    lo = 0
-    hi = n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if s_nodes[mid] <= s:
-            lo = mid
-        else:
-            hi = mid
-    w = (s - s_nodes[lo]) / (s_nodes[lo + 1] - s_nodes[lo])
-    return (1.0 - w) * x[lo, 0] + w * x[lo + 1, 0], (1.0 - w) * x[lo, 1] + w * x[lo + 1, 1]
+    i, w = _locate(s, s_nodes)
+    return (1.0 - w) * x[i, 0] + w * x[i + 1, 0], (1.0 - w) * x[i, 1] + w * x[i + 1, 1]
 
 
 @numba.njit(cache=True)
