@@ -548,39 +548,20 @@ def run(save=True, quick=False, repeat=5, sensitivity=False, interpreted=True):
     for r in auto_rows + interp_rows + ours_rows:
         r["error_s"] = _fmt_err(r["error"])
 
+    fold_cols = [
+        ("code", "code", "s"),
+        ("mesh", "mesh", "s"),
+        ("unknowns", "unknowns", "d"),
+        ("fold", "fold Δ", ".12f"),
+        ("error_s", "error", "s"),
+        ("n_folds", "folds", "d"),
+        ("points", "points", "d"),
+        ("time", "wall [s]", ".3f"),
+    ]
     print("\n## AUTO-07p through bifpy: the fold against the mesh (IAD = 0, DSMAX = 0.5)")
-    print(
-        table(
-            auto_rows + interp_rows,
-            [
-                ("code", "code", "s"),
-                ("mesh", "mesh", "s"),
-                ("unknowns", "unknowns", "d"),
-                ("fold", "fold Δ", ".12f"),
-                ("error_s", "error", "s"),
-                ("n_folds", "folds", "d"),
-                ("points", "points", "d"),
-                ("time", "wall [s]", ".3f"),
-                ("time_exe", "executable [s]", ".3f"),
-            ],
-        )
-    )
+    print(table(auto_rows + interp_rows, [*fold_cols, ("time_exe", "executable [s]", ".3f")]))
     print("\n## elastocap: the same job (flat start at Δ = 2.5, through both folds, to M = 1.1)")
-    print(
-        table(
-            ours_rows,
-            [
-                ("code", "code", "s"),
-                ("mesh", "mesh", "s"),
-                ("unknowns", "unknowns", "d"),
-                ("fold", "fold Δ", ".12f"),
-                ("error_s", "error", "s"),
-                ("n_folds", "folds", "d"),
-                ("points", "points", "d"),
-                ("time", "wall [s]", ".3f"),
-            ],
-        )
-    )
+    print(table(ours_rows, fold_cols))
     print("\n## elastocap: the whole supp-fig5 diagram (search, 5 branches, folds, estimates)")
     print(
         table(
