@@ -51,8 +51,19 @@ node with each edge's multiplier after its second node, so the KKT matrix is ban
 (7 sub- and super-diagonals); it is factored without pivoting (every leading block is a
 KKT matrix of a sub-chain), with banded partial pivoting as the fallback: ``O(N)`` a step.
 
-Not (yet) supported: constraint effects (:class:`~dynamics.Ground`,
-:class:`~dynamics.Clamp`): :func:`simulate_implicit` refuses them by name.
+Ground contact (:class:`~dynamics.Ground`, frictionless, perfectly inelastic)
+--------------------------------------------------------------------------------
+An active set of held nodes: the vertical momentum row of a held node is replaced by its
+height constraint ``z_i(x1) = z0`` (an identity row in the same banded KKT matrix), and
+that row's residual is its contact impulse (:func:`ground_rows_residual`).  The set is
+updated on Newton iterates near convergence and again after convergence
+(:func:`ground_update`): a free node ending below the ground is held, a held node the
+ground pulls is released (lift-off, no adhesion); a node released and caught again in the
+same step stays held (no cycling).  A held node ends the step at ``z0`` with zero
+vertical velocity: the landing is perfectly inelastic (the midpoint rule alone would give
+``v1 = -v0``, a bounce), a resting rod has no jitter, and the contact forces do no
+positive work (``D_z <= 0`` where they push).  Other constraint effects
+(:class:`~dynamics.Clamp`) are refused by name.
 
 References: Hairer, Lubich & Wanner, "Geometric Numerical Integration" (2006), sec. VII.1
 (constrained mechanical systems), sec. V.4 and VI.3 (midpoint rule); Newmark (1959);
@@ -98,6 +109,9 @@ __all__ = [
     "midpoint_ok",
     "hessian_columns_add",
     "bending_hessian_add",
+    "ground_rows_residual",
+    "ground_rows_matrix",
+    "ground_update",
     "KL",
 ]
 
@@ -148,6 +162,11 @@ REFRESH_RATE = 0.1
 #: by a vanishing length.  The step is then rejected and retried with substeps.
 MIN_MID_EDGE = 0.2
 
+#: Smallest ``1 + cos(psi)`` of a midpoint joint accepted (psi its turning angle): 1e-3
+#: rejects turns beyond 177 degrees, which only diverging iterates reach (measured: a
+#: fig3-strip run at dt = 0.02 otherwise stopped on a division by zero).
+MIN_JOINT_DEN = 1e-3
+
 #: A second refresh within one step needs the iterate to have moved by more than this
 #: fraction of an edge since the last one (sum of the corrections' max norms).  Measured:
 #: a released wavy rod (bending only, exact Jacobian, 16x the bound) needs repeated
@@ -160,6 +179,23 @@ REFRESH_MOVE = 0.01
 #: the check of the analytic one), relative to the edge length: central differences,
 #: truncation ~ eps_fd**2 (1e-10) and round-off ~ 1e-16 / eps_fd (1e-11) relative.
 FD_REL_STEP = 1e-5
+
+#: Rounds of the contact complementarity loop per step (hold the nodes that end below the
+#: ground, release those the ground pulls, solve again); a step still inconsistent after
+#: them is rejected and retried with substeps.  With the active set also updated inside
+#: Newton (near convergence), fig3-strip impacts (198 edges, dt = 0.005-0.01) need 0.5-0.7
+#: active-set changes a step on average (measured).
+MAX_CONTACT_ROUNDS = 8
+
+#: A held node is released when the ground pulls it by more than this (relative to the
+#: shortest edge, as the scaled impulse ``dt**2/2 f / m``, length units): 1e3 times the
+#: Newton tolerance, so that the round-off of a converged multiplier (~NEWTON_TOL_X h)
+#: never releases a resting node, and far below the weight of a node over a step
+#: (``dt**2 g / 2 ~ 1e-4`` at dt = 0.02).
+CONTACT_PULL_TOL = 1e-10
+
+#: (module, kernel) of the one constraint effect the implicit stepper handles.
+_GROUND_REF = ("dynamics.effects", "ground_kernel")
 
 _STATUS_IMPLICIT = dict(_STATUS)
 _STATUS_IMPLICIT[2] = ("newton_failed", "the implicit step's Newton iteration did not converge")
@@ -551,6 +587,17 @@ def midpoint_ok(xm, edge_len):
         lim = MIN_MID_EDGE * edge_len[j]
         if not ex * ex + ez * ez >= lim * lim:
             return False
+    # a joint folded back on itself (turn > 177 degrees) would divide by zero in the
+    # bending kernel (kb = 2 tan(psi/2)); only a diverging iterate gets there
+    for j in range(1, edge_len.shape[0]):
+        ax = xm[j, 0] - xm[j - 1, 0]
+        az = xm[j, 1] - xm[j - 1, 1]
+        bx = xm[j + 1, 0] - xm[j, 0]
+        bz = xm[j + 1, 1] - xm[j, 1]
+        la = np.sqrt(ax * ax + az * az)
+        lb = np.sqrt(bx * bx + bz * bz)
+        if not la * lb + ax * bx + az * bz > MIN_JOINT_DEN * la * lb:
+            return False
     return True
 
 
@@ -571,6 +618,91 @@ def kkt_update(d, mu, rhs):
     return dmax
 
 
+@numba.njit(cache=True)
+def ground_rows_residual(x0, d, held, z0, rhs, wnu):
+    """Replace the vertical momentum rows of held nodes by their contact constraint.
+
+    For a held node ``i`` (``held[i] != 0``) the row ``z_i(x1) = z0`` replaces the vertical
+    momentum row; that row's residual is then the (scaled) contact impulse, saved in
+    ``wnu[i] = -rhs`` before the overwrite: ``w_i nu_i = dt**2/2 w_i f_i`` with ``f_i``
+    the mean contact force over the step (length units; > 0 pushes the node up).
+
+    Parameters
+    ----------
+    x0, d : ndarray, shape (n, 2)
+        Start of the step and increment (length units).
+    held : ndarray, shape (n,)
+        Nonzero for held nodes.
+    z0 : float
+        Ground height (length units).
+    rhs : ndarray, shape (3 n - 1,)
+        Minus the residual of :func:`kkt_residual`, modified in place.
+    wnu : ndarray, shape (n,)
+        Written for held nodes.
+
+    Returns
+    -------
+    float
+        Largest ``|R_i|`` over the momentum rows, held rows now included as constraints.
+    """
+    n = x0.shape[0]
+    for i in range(n):
+        if held[i] != 0.0:
+            b = _node_index(i) + 1
+            wnu[i] = -rhs[b]
+            rhs[b] = -(x0[i, 1] + d[i, 1] - z0)
+    rmax = 0.0
+    for i in range(n):
+        b = _node_index(i)
+        for a in range(2):
+            r = abs(rhs[b + a])
+            if not r <= rmax:
+                rmax = r
+    return rmax
+
+
+@numba.njit(cache=True)
+def ground_rows_matrix(held, ab):
+    """Identity rows for the vertical coordinate of held nodes in the band matrix ``ab``
+    (the Jacobian of the rows written by :func:`ground_rows_residual`)."""
+    kl = KL
+    for i in range(held.shape[0]):
+        if held[i] != 0.0:
+            r = _node_index(i) + 1
+            ab[r, :] = 0.0
+            ab[r, kl] = 1.0
+
+
+@numba.njit(cache=True)
+def ground_update(x0, d, held, released, wnu, z0, tol_pull):
+    """One round of the contact complementarity check, after a converged Newton solve.
+
+    A held node whose contact impulse pulls (``wnu < -tol_pull``) is released, unless it
+    was already released and re-caught in this step (``released == 2``: no cycling); a
+    free node that ends below the ground is held (``d`` put on the ground).
+
+    Returns
+    -------
+    int
+        Number of nodes whose status changed (0: the active set is consistent).
+    """
+    n = x0.shape[0]
+    changed = 0
+    for i in range(n):
+        if held[i] != 0.0:
+            if wnu[i] < -tol_pull and released[i] == 0.0:
+                held[i] = 0.0
+                released[i] = 1.0
+                changed += 1
+        elif x0[i, 1] + d[i, 1] < z0:
+            held[i] = 1.0
+            d[i, 1] = z0 - x0[i, 1]
+            if released[i] != 0.0:
+                released[i] = 2.0
+            changed += 1
+    return changed
+
+
 # ----------------------------------------------------------------------------- codegen
 
 #: Body of the generated module: the effect-specific ``_forces`` and ``_damp`` are
@@ -579,9 +711,11 @@ def kkt_update(d, mu, rhs):
 #: functions) for the same reason as :mod:`dynamics.stepper`: numba caches it on disk.
 _TEMPLATE = '''
 @numba.njit(cache=True)
-def _jacobian(x0, d, xm, mu, winv, edge_len, B, dt, ab, piv):
+def _jacobian(x0, d, xm, mu, winv, edge_len, B, dt, ab, piv, held):
     kkt_assemble(x0, d, xm, mu, winv, edge_len, ab)
     bending_hessian_add(xm, edge_len, B, 0.25 * dt * dt, winv, ab)
+    if HAS_GROUND:
+        ground_rows_matrix(held, ab)
     # no pivoting unless a pivot is tiny (see band_lu_nopivot)
     info = band_lu_nopivot(ab, KL, KL, 1e-10)
     if info == 0:
@@ -589,6 +723,8 @@ def _jacobian(x0, d, xm, mu, winv, edge_len, B, dt, ab, piv):
         return 0
     kkt_assemble(x0, d, xm, mu, winv, edge_len, ab)
     bending_hessian_add(xm, edge_len, B, 0.25 * dt * dt, winv, ab)
+    if HAS_GROUND:
+        ground_rows_matrix(held, ab)
     if band_lu(ab, piv, KL, KL) != 0:
         return -1
     return 1
@@ -604,6 +740,9 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
     xm = ws[3]
     F = ws[4]
     acc = ws[5]
+    held = ws[6][:, 0]
+    wnu = ws[6][:, 1]
+    released = ws[7][:, 0]
     vm = ws[9]
     half = 0.5 * dt
     inv_dt = 1.0 / dt
@@ -611,73 +750,111 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
     tol_c = opts[1]
     max_iter = int(opts[2])
     max_age = opts[3]
+    tol_pull = opts[4]
+    z0 = _z0(t PARGS)
     _damp(x, v, t, edge_len, mass, half PARGS)
     for i in range(n):
         for k in range(2):
             x0[i, k] = x[i, k]
             v0[i, k] = v[i, k]
             d[i, k] = dt * v[i, k] + half * dt * acc[i, k]
+    if HAS_GROUND:
+        for i in range(n):
+            released[i] = 0.0
+            if held[i] != 0.0:
+                d[i, 1] = z0 - x0[i, 1]
     # a factorisation made for another dt (substeps) or too old is refreshed
     if diag[9] != dt or diag[8] >= max_age:
         diag[8] = max_age
     it = 0
     ok = False
-    d_prev = np.inf
-    theta = 0.0
-    refreshed = False
-    moved = 0.0
     h_min = edge_len.min()
+    rounds = 0
+    rmax = np.inf
     while True:
-        for i in range(n):
-            for k in range(2):
-                xm[i, k] = x0[i, k] + 0.5 * d[i, k]
-                vm[i, k] = d[i, k] * inv_dt
-        if not midpoint_ok(xm, edge_len):
-            rmax = np.inf
-            break
-        _forces(xm, vm, t + half, edge_len, mass, B, F, energy FARGS)
-        rmax, cmax = kkt_residual(x0, v0, d, xm, F, mu, winv, edge_len, dt, rhs)
-        if not (rmax < np.inf and cmax < np.inf):
-            break
-        if rmax <= tol_x and cmax <= tol_c:
-            ok = True
-            break
-        if it >= max_iter:
-            break
-        # refresh the factorisation when it is stale or the corrections contract slowly
-        # (the residual is no guide near convergence: it sits on its round-off floor)
-        # (again in the same step only if the iterate has moved since: a fresh matrix that
-        # still contracts slowly near where it was made is missing the external forces'
-        # stiffness, which no refresh adds)
-        if diag[8] >= max_age or (theta > REFRESH_RATE
-                                  and (not refreshed or moved > REFRESH_MOVE * h_min)):
-            info = _jacobian(x0, d, xm, mu, winv, edge_len, B, dt, ab, piv)
-            diag[10] += 1
-            if info == 1:
-                diag[1] += 1
-                info = 0
-            diag[8] = 0
-            diag[9] = dt
-            refreshed = True
-            moved = 0.0
-            if info != 0:
-                break
-        band_solve(ab, piv, KL, KL, rhs)
-        dmax = kkt_update(d, mu, rhs)
-        moved += dmax
-        it += 1
-        # the residual has a round-off floor ~ eps |x| (1 + (omega_max dt)**2 / 4) that
-        # grows with dt; the correction does not.  Error left after this correction,
-        # estimated from the observed contraction theta (Hairer & Wanner, sec. IV.8):
-        # theta / (1 - theta) * dmax; accepted without one more force evaluation
-        est = dmax
+        # Newton for the current set of held nodes
+        ok = False
+        d_prev = np.inf
         theta = 0.0
-        if it > 1:
-            theta = dmax / d_prev
-            est = theta / (1.0 - theta) * dmax if theta < 0.5 else np.inf
-        d_prev = dmax
-        if est <= tol_x and cmax <= FINAL_C:
-            ok = True
+        refreshed = False
+        moved = 0.0
+        while True:
+            for i in range(n):
+                for k in range(2):
+                    xm[i, k] = x0[i, k] + 0.5 * d[i, k]
+                    vm[i, k] = d[i, k] * inv_dt
+            if not midpoint_ok(xm, edge_len):
+                rmax = np.inf
+                break
+            _forces(xm, vm, t + half, edge_len, mass, B, F, energy FARGS)
+            rmax, cmax = kkt_residual(x0, v0, d, xm, F, mu, winv, edge_len, dt, rhs)
+            if HAS_GROUND:
+                rmax = ground_rows_residual(x0, d, held, z0, rhs, wnu)
+                # active-set update on the current iterate once it is near convergence
+                # (edge lengths within FINAL_C; earlier iterates flip nodes spuriously): a
+                # semi-smooth Newton step.  Each node changes at most 3 times a step
+                # (free -> held -> released -> held for good), so this cannot cycle
+                # (the held rows changed: refactor; measured, a stale matrix lets the
+                # iterate diverge)
+                if (cmax <= FINAL_C
+                        and ground_update(x0, d, held, released, wnu, z0, tol_pull) > 0):
+                    diag[4] += 1
+                    diag[8] = max_age
+                    continue
+            if not (rmax < np.inf and cmax < np.inf):
+                break
+            if rmax <= tol_x and cmax <= tol_c:
+                ok = True
+                break
+            if it >= max_iter:
+                break
+            # refresh the factorisation when it is stale or the corrections contract
+            # slowly (the residual is no guide near convergence: it sits on its round-off
+            # floor) (again in the same step only if the iterate has moved since: a fresh
+            # matrix that still contracts slowly near where it was made is missing the
+            # external forces' stiffness, which no refresh adds)
+            if diag[8] >= max_age or (theta > REFRESH_RATE
+                                      and (not refreshed or moved > REFRESH_MOVE * h_min)):
+                info = _jacobian(x0, d, xm, mu, winv, edge_len, B, dt, ab, piv, held)
+                diag[10] += 1
+                if info == 1:
+                    diag[1] += 1
+                    info = 0
+                diag[8] = 0
+                diag[9] = dt
+                refreshed = True
+                moved = 0.0
+                if info != 0:
+                    break
+            band_solve(ab, piv, KL, KL, rhs)
+            dmax = kkt_update(d, mu, rhs)
+            moved += dmax
+            it += 1
+            # the residual has a round-off floor ~ eps |x| (1 + (omega_max dt)**2 / 4)
+            # that grows with dt; the correction does not.  Error left after this
+            # correction, estimated from the observed contraction theta (Hairer & Wanner,
+            # sec. IV.8): theta / (1 - theta) * dmax; accepted without one more force
+            # evaluation
+            est = dmax
+            theta = 0.0
+            if it > 1 and d_prev > 0.0:
+                theta = dmax / d_prev
+                est = theta / (1.0 - theta) * dmax if theta < 0.5 else np.inf
+            d_prev = dmax
+            if est <= tol_x and cmax <= FINAL_C:
+                ok = True
+                break
+        if not ok or not HAS_GROUND:
+            break
+        # contact complementarity: hold the nodes that end below the ground, release
+        # those the ground pulls; solve again until the set is consistent
+        if ground_update(x0, d, held, released, wnu, z0, tol_pull) == 0:
+            break
+        rounds += 1
+        diag[4] += 1
+        diag[8] = max_age  # the held rows changed: refactor
+        if rounds > MAX_CONTACT_ROUNDS:
+            ok = False
             break
     if not ok:
         diag[5] = rmax
@@ -694,6 +871,14 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
     for i in range(n):
         for k in range(2):
             acc[i, k] = (v[i, k] - v0[i, k]) * inv_dt
+    if HAS_GROUND:
+        # perfectly inelastic: a held node ends the step on the ground at rest vertically
+        # (the midpoint rule alone would return v1 = -v0: a bounce)
+        for i in range(n):
+            if held[i] != 0.0:
+                x[i, 1] = z0
+                v[i, 1] = 0.0
+                acc[i, 1] = 0.0
     _damp(x, v, t + half, edge_len, mass, half PARGS)
     return it
 
@@ -706,6 +891,8 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
     xb = ws[10]
     vb = ws[11]
     ab_ = ws[12]
+    held = ws[6][:, 0]
+    hb = ws[8][:, 0]
     mub = np.empty_like(mu)
     status = 0
     steps = 0
@@ -715,6 +902,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
         vb[:, :] = v
         ab_[:, :] = acc
         mub[:] = mu
+        hb[:] = held
         st = _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, diag,
                    opts PARGS)
         if st < 0:
@@ -724,6 +912,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
                 v[:, :] = vb
                 acc[:, :] = ab_
                 mu[:] = mub
+                held[:] = hb
                 diag[6] += 1
                 sub = 2 ** level
                 h = dt / sub
@@ -739,6 +928,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
             if st < 0:
                 x[:, :] = xb
                 v[:, :] = vb
+                held[:] = hb
                 status = 2
                 break
         steps += 1
@@ -766,18 +956,23 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
 
 def _generate_source(refs):
     """Source of an implicit stepper module for ``refs = [(kind, module, name), ...]``."""
-    imports, P, forces, damps = [], [], [], []
+    imports, P, forces, damps, ground = [], [], [], [], []
     for j, (kind, mod, name) in enumerate(refs):
         alias = f"_k{j}"
-        imports.append(f"from {mod} import {name} as {alias}")
         P.append(f"p{j}")
         if kind == "force":
+            imports.append(f"from {mod} import {name} as {alias}")
             forces.append((alias, f"p{j}"))
         elif kind == "damping":
+            imports.append(f"from {mod} import {name} as {alias}")
             damps.append((alias, f"p{j}"))
+        elif (mod, name) == _GROUND_REF and not ground:
+            # the ground is not called as a kernel: its height constraint enters the
+            # Newton system (ground_rows_residual / ground_rows_matrix)
+            ground.append(f"p{j}")
         else:
-            raise ValueError(f"constraint effects are not supported by the implicit "
-                             f"stepper (got {mod}.{name})")
+            raise ValueError(f"constraint effects other than one ground are not supported "
+                             f"by the implicit stepper (got {mod}.{name})")
     pargs = "".join(", " + p for p in P)
     fargs = "".join(", " + p for _, p in forces)
     L = ["# Generated by dynamics.implicit: an implicit-midpoint stepper for its effects.",
@@ -786,11 +981,18 @@ def _generate_source(refs):
          "import numpy as np",
          "from dynamics.bending import bending_force_add",
          "from dynamics.constraints import constraint_error",
-         "from dynamics.implicit import (FINAL_C, KL, MAX_HALVINGS, REFRESH_MOVE, REFRESH_RATE,",
-         "                               band_lu,",
+         "from dynamics.implicit import (FINAL_C, KL, MAX_CONTACT_ROUNDS, MAX_HALVINGS,",
+         "                               REFRESH_MOVE, REFRESH_RATE, band_lu,",
          "                               band_lu_nopivot, band_solve, bending_hessian_add,",
-         "                               kkt_assemble, kkt_residual, kkt_update, midpoint_ok)",
-         *imports, "", "",
+         "                               ground_rows_matrix, ground_rows_residual,",
+         "                               ground_update, kkt_assemble, kkt_residual,",
+         "                               kkt_update, midpoint_ok)",
+         *imports, "",
+         f"HAS_GROUND = {bool(ground)}", "", "",
+         "@numba.njit(cache=True)",
+         f"def _z0(t{''.join(', ' + p for p in P)}):",
+         f"    return {ground[0] + '[0]' if ground else '0.0'}",
+         "", "",
          "@numba.njit(cache=True)",
          f"def _forces(x, v, t, edge_len, mass, B, F, energy{fargs}):",
          "    for i in range(x.shape[0]):",
@@ -817,8 +1019,8 @@ def compile_implicit(effects=()):
     Parameters
     ----------
     effects : sequence of effect objects
-        Force and damping effects (see :mod:`dynamics.effects`); constraint effects are
-        refused.
+        Force and damping effects (see :mod:`dynamics.effects`) and at most one ground;
+        other constraint effects are refused.
 
     Returns
     -------
@@ -826,15 +1028,25 @@ def compile_implicit(effects=()):
         With numba functions ``run``, ``_step``, ``_forces`` and ``_jacobian``.
     """
     refs = []
+    grounds = 0
     for e in effects:
         if e.kind not in KINDS:
             raise ValueError(f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}")
+        ref = _kernel_ref(e)
         if e.kind == "constraint":
-            raise ValueError(
-                f"effect {e.name!r}: constraint effects (ground, clamp) are not supported by "
-                "the implicit stepper yet; use dynamics.simulate (RATTLE) for this scene"
-            )
-        refs.append((e.kind, *_kernel_ref(e)))
+            if ref != _GROUND_REF:
+                raise ValueError(
+                    f"effect {e.name!r}: constraint effects other than the ground (a clamp, "
+                    "your own) are not supported by the implicit stepper yet; use "
+                    "dynamics.simulate (RATTLE) for this scene"
+                )
+            grounds += 1
+            if grounds > 1:
+                raise ValueError(
+                    f"effect {e.name!r}: the implicit stepper handles one ground; got "
+                    f"{grounds} ground effects"
+                )
+        refs.append((e.kind, *ref))
     refs = tuple(refs)
     if refs in _MODULES:
         return _MODULES[refs]
@@ -872,7 +1084,8 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     ----------
     rod : Rod
     effects : sequence of effect objects
-        Force and damping effects; constraint effects (ground, clamp) are refused.
+        Force and damping effects, and at most one :class:`~dynamics.Ground`; other
+        constraint effects (clamp) are refused.
     dt : float
         Time step (time units).
     t_end : float
@@ -957,7 +1170,13 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
         rest_arr[0] = rest.kinetic_energy
         rest_arr[1] = rest.duration
     h_min = float(edge_len.min())
-    opts = np.array([tol_x * h_min, tol_c, NEWTON_MAX_ITER, float(int(jacobian_age))])
+    opts = np.array([tol_x * h_min, tol_c, NEWTON_MAX_ITER, float(int(jacobian_age)),
+                     CONTACT_PULL_TOL * h_min])
+    ground = [e for e in effects if e.kind == "constraint"]
+    if ground:
+        # nodes on (or below) the ground at the start are held; the first step's
+        # complementarity check releases those the ground pulls
+        ws[6][:, 0] = x[:, 1] <= ground[0].params[0]
 
     def forces_at_x(t):
         F = ws[4]
@@ -971,10 +1190,10 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     forces_at_x(t0)
     compile_time = time.perf_counter() - tc
     tc = time.perf_counter()
-    xs, vs, accs = x.copy(), v.copy(), ws[5].copy()
+    xs, vs, accs, hs = x.copy(), v.copy(), ws[5].copy(), ws[6].copy()
     mod.run(x, v, t0, dt, 1, edge_len, mass, winv, rod.B, ws, mu, ab, piv, rhs, energy,
             diag, np.zeros(3), opts, *params)  # compile / load; state restored below
-    x[:, :], v[:, :], ws[5][:, :] = xs, vs, accs
+    x[:, :], v[:, :], ws[5][:, :], ws[6][:, :] = xs, vs, accs, hs
     mu[:] = 0.0
     diag[:] = 0.0
     compile_time += time.perf_counter() - tc
@@ -1069,4 +1288,5 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     # diagnostics of this stepper only (not fields of SimulationResult)
     res.jacobians = int(diag[10])
     res.pivoted_factorisations = int(diag[1])
+    res.contact_rounds = int(diag[4])
     return res
