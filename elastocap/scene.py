@@ -94,7 +94,7 @@ SPREADING_KEYS: dict[str, tuple[str, Any]] = {
 #: Solver settings. Statics: Chebyshev points per segment, Newton tolerance, continuation
 #: steps. Dynamics: edges, time step (0 = automatic, a fraction of the stable bound), final
 #: time, rest criterion, and the time stepper (explicit RATTLE, or the implicit midpoint
-#: rule for scenes without a ground). Accuracy presets map to these (see README, "What
+#: rule). Accuracy presets map to these (see README, "What
 #: accuracy costs").
 NUMERICS_KEYS: dict[str, tuple[str, Any]] = {
     "accuracy": ("str:draft|default|publication", "default"),
@@ -519,13 +519,6 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
     drop = Drop(dsec["area"], delta, center, dsec["line_tension"], events)
     effects = Effects(**_read_section(data_effects, "effects", EFFECTS_KEYS))
     numerics = Numerics(**_read_section(data.get("numerics", {}), "numerics", NUMERICS_KEYS))
-    if numerics.integrator == "implicit" and effects.ground:
-        raise SceneError(
-            "numerics.integrator",
-            "implicit",
-            "the implicit stepper does not handle a ground (effects.ground = true); "
-            "allowed with a ground: rattle",
-        )
     if raw_spr is not None:
         spreading = Spreading(**_read_section(raw_spr, "spreading", SPREADING_KEYS))
     return Scene(
