@@ -6,7 +6,8 @@ window, convergence in n, timings.
 Writes ``strip_barrier.json`` (one record per (x, Delta), the windows) and prints a table;
 about 5 min on 2 shared cores (``--fast``: one point, 10 s). Small
 dense LAPACK calls (101 x 101 eigh) run ~100x slower with multi-threaded OpenBLAS on a
-loaded 2-core machine (measured 1.8 ms single-threaded against 176 ms), hence one thread.
+loaded 2-core machine (measured 1.8 ms single-threaded against 176 ms), hence one thread
+(``elastocap.strip._blas.blas_threads``).
 """
 
 from __future__ import annotations
@@ -17,44 +18,27 @@ import os
 import sys
 import time
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-
-import numpy as np  # noqa: E402
-
-from elastocap.scene import load_scene  # noqa: E402
-from elastocap.strip.barrier import flat_energy, kinetic_energy  # noqa: E402
-from elastocap.strip.discrete import (  # noqa: E402
+from elastocap.scene import load_scene
+from elastocap.strip._blas import blas_threads
+from elastocap.strip.barrier import flat_energy, kinetic_energy
+from elastocap.strip.discrete import (
     DiscreteStrip,
     minimize_energy,
     prolong,
     refine,
 )
-from elastocap.strip.mep import (  # noqa: E402
-    barrier,
-    continue_in_delta,
-    is_encapsulated,
-    open_state,
-    wrapped_state,
-)
+from elastocap.strip.mep import barrier, is_encapsulated
+from elastocap.strip.windows import branch_window
 
 L, AREA, GAMMA = 14.3, 0.36, 40.0
 
 
-def window(x, n, d_lo=0.5, d_hi=2.2, d_start_open=0.6, d_start_wrap=1.6, step=0.05):
-    """Delta range of the open branch (continued up from d_start_open) and of the wrapped
-    branch (continued down from d_start_wrap), each to 1e-3; a branch also ends where the
-    state changes kind (open <-> encapsulated)."""
-    out = {}
-    s = DiscreteStrip(n, L, x, d_start_open, AREA, GAMMA)
-    op = open_state(s)
-    up = continue_in_delta(s, op, np.arange(d_start_open + step, d_hi + 1e-9, step))
-    out["open_max"] = up[-1][0] if up else d_start_open
-    s = DiscreteStrip(n, L, x, d_start_wrap, AREA, GAMMA)
-    wr = wrapped_state(s)
-    dn = continue_in_delta(s, wr, np.arange(d_start_wrap - step, d_lo - 1e-9, -step))
-    out["wrapped_min"] = dn[-1][0] if dn else d_start_wrap
-    return out
+def window(x, n, **kw):
+    """Delta range of the open branch (continued up from Delta = 0.6) and of the wrapped
+    branch (continued down from 1.6), each to 1e-3 (elastocap.strip.windows.branch_window);
+    a branch also ends where the state changes kind (open <-> encapsulated)."""
+    w = branch_window(DiscreteStrip(n, L, x, 0.6, AREA, GAMMA), **kw)
+    return w.to_dict()
 
 
 def barrier_row(sc, x, d, n, n_fine=None):
@@ -114,7 +98,7 @@ def main(out_dir="out/strip_barrier", fast=False, n=143, n_fine=429):
         for x in (1.5, 2.0, 3.0, 4.0):
             t = time.perf_counter()
             w = window(x, 100)
-            w.update(x=x, n=100, time=time.perf_counter() - t)
+            w.update(time=time.perf_counter() - t)
             windows.append(w)
             print(f"x={x}: open branch up to Delta = {w['open_max']:.3f}, wrapped branch down "
                   f"to Delta = {w['wrapped_min']:.3f} (n = 100)", flush=True)
@@ -130,5 +114,6 @@ if __name__ == "__main__":
     ap.add_argument("--n", type=int, default=143)
     ap.add_argument("--n-fine", type=int, default=429)
     a = ap.parse_args()
-    main(a.out, a.fast, a.n, a.n_fine)
+    with blas_threads(1):
+        main(a.out, a.fast, a.n, a.n_fine)
     sys.exit(0)

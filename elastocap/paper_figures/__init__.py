@@ -19,6 +19,7 @@ FIGURES = {
     "energy-barrier": "energy_barrier",
     "fig3d": "fig3d",
     "fig4-fig5": "fig4_fig5",
+    "strip-bistability": "strip_bistability",
 }
 
 

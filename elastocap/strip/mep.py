@@ -45,7 +45,9 @@ __all__ = [
     "BarrierResult",
     "StringPath",
     "barrier",
+    "END_REASONS",
     "continue_in_delta",
+    "continue_in_delta_end",
     "descend_from_saddle",
     "is_encapsulated",
     "open_state",
@@ -109,6 +111,31 @@ def continue_in_delta(strip: DiscreteStrip, eq: Equilibrium, deltas,
     list of (Delta, Equilibrium): the stable states, the last one within ``min_step`` of
     the Delta where the branch ends: a fold (Newton fails or the index turns 1), a jump
     to another branch (an edge turns by more than ``_JUMP``), or a change of kind.
+    :func:`continue_in_delta_end` also says which.
+    """
+    return continue_in_delta_end(strip, eq, deltas, min_step, keep_kind)[0]
+
+
+#: Why a continuation in Delta stopped (the last failed attempt, within ``min_step`` of the
+#: last state kept): ``scan_limit`` (every Delta asked for was reached), ``no_convergence``
+#: (Newton failed: a fold, or a contact change it cannot follow), ``unstable`` (converged
+#: to an index >= 1 point: past a fold), ``jump`` (converged onto another branch: some edge
+#: turned by more than ``_JUMP``), ``kind_change`` (a stable state of the other kind,
+#: reached continuously).
+END_REASONS = ("scan_limit", "no_convergence", "unstable", "jump", "kind_change")
+
+
+def continue_in_delta_end(strip: DiscreteStrip, eq: Equilibrium, deltas, min_step=1e-3,
+                          keep_kind=True) -> tuple[list[tuple[float, Equilibrium]], dict]:
+    """:func:`continue_in_delta`, also returning how the branch ended.
+
+    Returns
+    -------
+    states : list of (Delta, Equilibrium)
+    end : dict
+        ``reason`` (one of :data:`END_REASONS`), ``delta_failed`` (the Delta of the last
+        failed attempt, None for ``scan_limit``; the end lies between the last state kept
+        and it, an interval of at most ``min_step``).
     """
     out = []
     cur_d, cur = strip.delta, eq
@@ -129,9 +156,17 @@ def continue_in_delta(strip: DiscreteStrip, eq: Equilibrium, deltas,
                 target = float(d)
                 continue
             if abs(target - cur_d) <= min_step:
-                return out
+                if not nx.success:
+                    reason = "no_convergence"
+                elif not near:
+                    reason = "jump"
+                elif nx.index != 0:
+                    reason = "unstable"
+                else:
+                    reason = "kind_change"
+                return out, {"reason": reason, "delta_failed": target}
             target = 0.5 * (target + cur_d)
-    return out
+    return out, {"reason": "scan_limit", "delta_failed": None}
 
 
 # --------------------------------------------------------------------------- string method
