@@ -75,7 +75,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
-import math
 import os
 import sys
 import tempfile
@@ -85,14 +84,13 @@ import numba
 import numpy as np
 
 from .effects import KINDS
-from .rod import Rod
 from .stepper import (
     _STATUS,
-    SimulationResult,
     _fingerprint,
-    _frame_steps,
     _kernel_ref,
-    _resolve_param,
+    _result,
+    _schedule,
+    _validate_run,
     cache_dir,
     stable_dt,
 )
@@ -1106,42 +1104,11 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
         ``shake_iterations_max`` / ``_mean`` report the Newton iterations per step;
         ``status`` ``"newton_failed"`` when a step (and its substeps) did not converge.
     """
-    if not isinstance(rod, Rod):
-        raise TypeError(f"rod must be a dynamics.Rod, got {type(rod).__name__}")
-    dt = float(dt)
-    t_end = float(t_end)
-    if not (dt > 0 and np.isfinite(dt)):
-        raise ValueError(f"dt must be > 0 and finite, got dt = {dt!r}")
-    if not (t_end >= 0 and np.isfinite(t_end)):
-        raise ValueError(f"t_end must be >= 0 and finite, got t_end = {t_end!r}")
+    dt, t_end, effects, ev = _validate_run(rod, effects, events, dt, t_end)
     if int(jacobian_age) < 1:
         raise ValueError(f"jacobian_age must be >= 1, got {jacobian_age!r}")
     if rod.n_nodes < 3:
         raise ValueError(f"the implicit stepper needs >= 2 edges, got {rod.n_nodes - 1}")
-    effects = tuple(effects)
-    names = [e.name for e in effects]
-    dup = sorted({nm for nm in names if names.count(nm) > 1})
-    if dup:
-        raise ValueError(f"effect names must be unique; repeated: {dup}")
-    for e in effects:
-        p = getattr(e, "params", None)
-        if not (isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 1
-                and p.flags.c_contiguous):
-            raise TypeError(
-                f"effect {e.name!r}: params must be a 1-D C-contiguous float64 ndarray, got "
-                f"{type(p).__name__} {getattr(p, 'dtype', '')} {getattr(p, 'shape', '')}"
-            )
-    by_name = dict(zip(names, effects, strict=True))
-    ev = []
-    for e in events:
-        if e.effect not in by_name:
-            raise ValueError(f"event at t = {e.time:g}: no effect named {e.effect!r}; "
-                             f"effects are {names}")
-        if not 0 <= e.time <= t_end:
-            raise ValueError(f"event time {e.time!r} outside [0, t_end = {t_end:g}]")
-        j = _resolve_param(by_name[e.effect], e.param)
-        ev.append((int(math.ceil(e.time / dt - 1e-9)), by_name[e.effect], j, float(e.value)))
-    ev.sort(key=lambda r: r[0])
 
     tc = time.perf_counter()
     mod = compile_implicit(effects)
@@ -1198,11 +1165,7 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     diag[:] = 0.0
     compile_time += time.perf_counter() - tc
 
-    n_total = int(math.ceil(t_end / dt - 1e-9))
-    fidx = _frame_steps(frames, t_end, dt)
-    fidx = fidx[(fidx >= 0) & (fidx <= n_total)]
-    stops = sorted(set(fidx.tolist()) | {k for k, *_ in ev} | {n_total})
-    fset = set(fidx.tolist())
+    n_total, stops, fset = _schedule(frames, t_end, dt, ev)
 
     times, pos, ens, fired = [], [], [], []
     acc_save = np.empty((n, 2))
@@ -1257,34 +1220,8 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     if diag[6] and status != 2:
         msg += (f"; {int(diag[6])} rejected step(s) retried with up to "
                 f"{2 ** int(diag[7])} substeps")
-    if times:
-        E = np.array(ens)
-        energies = {"kinetic": E[:, 0]}
-        for k, nm in enumerate(force_names):
-            energies[nm] = E[:, k + 1]
-        energies["total"] = E.sum(axis=1)
-    else:
-        energies = {k: np.zeros(0) for k in ["kinetic", *force_names, "total"]}
-    res = SimulationResult(
-        times=np.array(times),
-        positions=np.array(pos).reshape(len(pos), n, 2),
-        velocities=v.copy(),
-        energies=energies,
-        status=name,
-        success=status in (0, 1),
-        message=msg,
-        steps=step,
-        t_final=t_final,
-        constraint_error_max=float(diag[0]),
-        shake_iterations_max=float(diag[2]),
-        shake_iterations_mean=float(diag[3] / step) if step else 0.0,
-        rejected_steps=int(diag[6]),
-        max_halvings=int(diag[7]),
-        wall_time=wall,
-        compile_time=compile_time,
-        dt=dt,
-        events_fired=fired,
-    )
+    res = _result(times, pos, ens, force_names, v, n, name, status, msg, step, t_final, diag,
+                  wall, compile_time, dt, fired)
     # diagnostics of this stepper only (not fields of SimulationResult)
     res.jacobians = int(diag[10])
     res.pivoted_factorisations = int(diag[1])

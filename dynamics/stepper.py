@@ -634,6 +634,88 @@ def _frame_steps(frames, t_end, dt):
     return idx
 
 
+def _validate_run(rod, effects, events, dt, t_end):
+    """Check the arguments shared by the steppers; return ``dt, t_end, effects, ev`` with
+    ``ev`` the events as sorted ``(step, effect, param index, value)``."""
+    if not isinstance(rod, Rod):
+        raise TypeError(f"rod must be a dynamics.Rod, got {type(rod).__name__}")
+    dt = float(dt)
+    t_end = float(t_end)
+    if not (dt > 0 and np.isfinite(dt)):
+        raise ValueError(f"dt must be > 0 and finite, got dt = {dt!r}")
+    if not (t_end >= 0 and np.isfinite(t_end)):
+        raise ValueError(f"t_end must be >= 0 and finite, got t_end = {t_end!r}")
+    effects = tuple(effects)
+    names = [e.name for e in effects]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"effect names must be unique; repeated: {dup}")
+    for e in effects:
+        p = getattr(e, "params", None)
+        if not (isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 1
+                and p.flags.c_contiguous):
+            raise TypeError(
+                f"effect {e.name!r}: params must be a 1-D C-contiguous float64 ndarray, got "
+                f"{type(p).__name__} {getattr(p, 'dtype', '')} {getattr(p, 'shape', '')}"
+            )
+    by_name = dict(zip(names, effects, strict=True))
+    ev = []
+    for e in events:
+        if e.effect not in by_name:
+            raise ValueError(f"event at t = {e.time:g}: no effect named {e.effect!r}; "
+                             f"effects are {names}")
+        if not 0 <= e.time <= t_end:
+            raise ValueError(f"event time {e.time!r} outside [0, t_end = {t_end:g}]")
+        j = _resolve_param(by_name[e.effect], e.param)
+        k = int(math.ceil(e.time / dt - 1e-9))
+        ev.append((k, by_name[e.effect], j, float(e.value)))
+    ev.sort(key=lambda r: r[0])
+    return dt, t_end, effects, ev
+
+
+def _schedule(frames, t_end, dt, ev):
+    """Steps where a run stops: ``n_total``, the sorted stops (frames, events, the end) and
+    the set of frame steps."""
+    n_total = int(math.ceil(t_end / dt - 1e-9))
+    fidx = _frame_steps(frames, t_end, dt)
+    fidx = fidx[(fidx >= 0) & (fidx <= n_total)]
+    stops = sorted(set(fidx.tolist()) | {k for k, *_ in ev} | {n_total})
+    return n_total, stops, set(fidx.tolist())
+
+
+def _result(times, pos, ens, force_names, v, n, status_name, status, msg, step, t_final, diag,
+            wall, compile_time, dt, fired):
+    """The :class:`SimulationResult` of a run (``diag`` in the steppers' common layout)."""
+    if times:
+        E = np.array(ens)
+        energies = {"kinetic": E[:, 0]}
+        for k, nm in enumerate(force_names):
+            energies[nm] = E[:, k + 1]
+        energies["total"] = E.sum(axis=1)
+    else:
+        energies = {k: np.zeros(0) for k in ["kinetic", *force_names, "total"]}
+    return SimulationResult(
+        times=np.array(times),
+        positions=np.array(pos).reshape(len(pos), n, 2),
+        velocities=v.copy(),
+        energies=energies,
+        status=status_name,
+        success=status in (0, 1),
+        message=msg,
+        steps=step,
+        t_final=t_final,
+        constraint_error_max=float(diag[0]),
+        shake_iterations_max=float(diag[2]),
+        shake_iterations_mean=float(diag[3] / step) if step else 0.0,
+        rejected_steps=int(diag[6]),
+        max_halvings=int(diag[7]),
+        wall_time=wall,
+        compile_time=compile_time,
+        dt=dt,
+        events_fired=fired,
+    )
+
+
 def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t0=0.0,
              check_dt=True):
     """Integrate an inextensible planar rod with RATTLE under the given effects.
@@ -670,14 +752,7 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
         Failures (SHAKE not converging, non-finite state) are reported in ``status`` and
         ``message``, not raised; the frames up to the failure are kept.
     """
-    if not isinstance(rod, Rod):
-        raise TypeError(f"rod must be a dynamics.Rod, got {type(rod).__name__}")
-    dt = float(dt)
-    t_end = float(t_end)
-    if not (dt > 0 and np.isfinite(dt)):
-        raise ValueError(f"dt must be > 0 and finite, got dt = {dt!r}")
-    if not (t_end >= 0 and np.isfinite(t_end)):
-        raise ValueError(f"t_end must be >= 0 and finite, got t_end = {t_end!r}")
+    dt, t_end, effects, ev = _validate_run(rod, effects, events, dt, t_end)
     dt_max = stable_dt(rod.edge_len, rod.mu, rod.B)
     if check_dt and dt > dt_max:
         h = float(rod.edge_len.min())
@@ -687,31 +762,6 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
             f"length = {h:.4g}, mu = {rod.mu:.4g}, B = {rod.B:.4g}). Use dt <= {dt_max:.4g}, "
             "or fewer edges (dt_max grows as h**2)."
         )
-    effects = tuple(effects)
-    names = [e.name for e in effects]
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise ValueError(f"effect names must be unique; repeated: {dup}")
-    for e in effects:
-        p = getattr(e, "params", None)
-        if not (isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 1
-                and p.flags.c_contiguous):
-            raise TypeError(
-                f"effect {e.name!r}: params must be a 1-D C-contiguous float64 ndarray, got "
-                f"{type(p).__name__} {getattr(p, 'dtype', '')} {getattr(p, 'shape', '')}"
-            )
-    by_name = dict(zip(names, effects, strict=True))
-    ev = []
-    for e in events:
-        if e.effect not in by_name:
-            raise ValueError(f"event at t = {e.time:g}: no effect named {e.effect!r}; "
-                             f"effects are {names}")
-        if not 0 <= e.time <= t_end:
-            raise ValueError(f"event time {e.time!r} outside [0, t_end = {t_end:g}]")
-        j = _resolve_param(by_name[e.effect], e.param)
-        k = int(math.ceil(e.time / dt - 1e-9))
-        ev.append((k, by_name[e.effect], j, float(e.value)))
-    ev.sort(key=lambda r: r[0])
 
     # compile (or load) the specialised stepper
     tc = time.perf_counter()
@@ -741,11 +791,7 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
             rest_arr, *params)
     compile_time = time.perf_counter() - tc
 
-    n_total = int(math.ceil(t_end / dt - 1e-9))
-    fidx = _frame_steps(frames, t_end, dt)
-    fidx = fidx[(fidx >= 0) & (fidx <= n_total)]
-    stops = sorted(set(fidx.tolist()) | {k for k, *_ in ev} | {n_total})
-    fset = set(fidx.tolist())
+    n_total, stops, fset = _schedule(frames, t_end, dt, ev)
 
     times, pos, ens, fired = [], [], [], []
 
@@ -798,31 +844,5 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
     if diag[6] and status != 2:
         msg += (f"; {int(diag[6])} rejected step(s) retried with up to "
                 f"{2 ** int(diag[7])} substeps (fast local motion: a smaller dt avoids this)")
-    if times:
-        E = np.array(ens)
-        energies = {"kinetic": E[:, 0]}
-        for k, nm in enumerate(force_names):
-            energies[nm] = E[:, k + 1]
-        energies["total"] = E.sum(axis=1)
-    else:
-        energies = {k: np.zeros(0) for k in ["kinetic", *force_names, "total"]}
-    return SimulationResult(
-        times=np.array(times),
-        positions=np.array(pos).reshape(len(pos), n, 2),
-        velocities=v.copy(),
-        energies=energies,
-        status=name,
-        success=status in (0, 1),
-        message=msg,
-        steps=step,
-        t_final=t_final,
-        constraint_error_max=float(diag[0]),
-        shake_iterations_max=float(diag[2]),
-        shake_iterations_mean=float(diag[3] / step) if step else 0.0,
-        rejected_steps=int(diag[6]),
-        max_halvings=int(diag[7]),
-        wall_time=wall,
-        compile_time=compile_time,
-        dt=dt,
-        events_fired=fired,
-    )
+    return _result(times, pos, ens, force_names, v, n, name, status, msg, step, t_final, diag,
+                   wall, compile_time, dt, fired)
