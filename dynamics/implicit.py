@@ -73,11 +73,7 @@ quadratic-constraint argument.
 
 from __future__ import annotations
 
-import hashlib
-import importlib.util
 import os
-import sys
-import tempfile
 import time
 
 import numba
@@ -91,7 +87,7 @@ from .stepper import (
     _result,
     _schedule,
     _validate_run,
-    cache_dir,
+    load_generated,
     stable_dt,
 )
 
@@ -1048,21 +1044,9 @@ def compile_implicit(effects=()):
     refs = tuple(refs)
     if refs in _MODULES:
         return _MODULES[refs]
-    src = _generate_source(refs)
     st = os.stat(__file__)
     fp = _fingerprint(refs) + f"{__file__}:{st.st_mtime_ns}:{st.st_size}"
-    digest = hashlib.sha256((src + fp).encode()).hexdigest()[:20]
-    modname = f"_dynamics_implicit_{digest}"
-    path = os.path.join(cache_dir(), modname + ".py")
-    if not os.path.exists(path):
-        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            f.write(src)
-        os.replace(tmp, path)
-    spec = importlib.util.spec_from_file_location(modname, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[modname] = module
-    spec.loader.exec_module(module)
+    module = load_generated("_dynamics_implicit", _generate_source(refs), fp)
     _MODULES[refs] = module
     return module
 

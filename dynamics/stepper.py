@@ -575,9 +575,16 @@ def compile_stepper(effects=()):
     refs = tuple(refs)
     if refs in _MODULES:
         return _MODULES[refs]
-    src = _generate_source(refs)
-    digest = hashlib.sha256((src + _fingerprint(refs)).encode()).hexdigest()[:20]
-    modname = f"_dynamics_stepper_{digest}"
+    module = load_generated("_dynamics_stepper", _generate_source(refs), _fingerprint(refs))
+    _MODULES[refs] = module
+    return module
+
+
+def load_generated(prefix, src, fingerprint):
+    """Write generated source to the cache directory (once, under a name hashed from the
+    source and ``fingerprint``) and import it, so that numba's on-disk cache applies."""
+    digest = hashlib.sha256((src + fingerprint).encode()).hexdigest()[:20]
+    modname = f"{prefix}_{digest}"
     path = os.path.join(cache_dir(), modname + ".py")
     if not os.path.exists(path):
         # write atomically: parallel workers may race on the same file
@@ -589,7 +596,6 @@ def compile_stepper(effects=()):
     module = importlib.util.module_from_spec(spec)
     sys.modules[modname] = module
     spec.loader.exec_module(module)
-    _MODULES[refs] = module
     return module
 
 
