@@ -41,10 +41,19 @@ FAST_N = (50, 100)
 #: Delta scanned (l_eg): 0.5 is below Delta0 = 0.594 of fig3-strip (We^(1/2) < 0: no
 #: impact spreads less), 2.2 is We^(1/2) = 5.7, beyond the dynamic sweep's 4.
 D_LO, D_HI = 0.5, 2.2
+_ROOT = Path(__file__).resolve().parents[2]
 
 
 def _default_fig3d() -> Path:
-    return Path(__file__).resolve().parents[2] / "docs" / "img" / "fig3d.json"
+    return _ROOT / "docs" / "img" / "fig3d.json"
+
+
+def _shown(path: Path) -> str:
+    """The path as recorded: relative to the repository when inside it (reproducible)."""
+    try:
+        return str(Path(path).resolve().relative_to(_ROOT))
+    except ValueError:
+        return str(path)
 
 
 def compute(scene, xs, ns, tol=TOL_DELTA) -> list[dict]:
@@ -188,7 +197,7 @@ def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[P
         "tolerance_delta": TOL_DELTA,
         "spreading": {"drop_radius": sp.drop_radius, "delta0": sp.delta0,
                       "coefficient": sp.coefficient},
-        "dynamic_diagram": str(path) if dyn is not None else None,
+        "dynamic_diagram": _shown(path) if dyn is not None else None,
         "notes": [
             "open_max: last Delta where the open branch (deposition at Delta = 0.6, continued "
             "up) is stable; wrapped_min: the same for the encapsulated branch (fold at "
