@@ -260,8 +260,9 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
             raise SceneError("drop.events", ev.time, f"event after numerics.t_max = {st['t_max']}")
     scale = scene.drop.line_tension * scene.drop.wetted_length
     retries = DT_RETRIES if not scene.numerics.dt else 0
-    rejected = []
-    for attempt in range(retries + 1):
+    attempts = []
+    dt = st["dt"]
+    for _ in range(retries + 1):
         x0 = np.zeros((n + 1, 2))
         x0[:, 0] = np.linspace(0.0, L, n + 1)
         rod = Rod(
@@ -276,19 +277,31 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
         sim = stepper(
             rod,
             effects,
-            dt=st["dt"],
+            dt=dt,
             t_end=st["t_max"],
             frames=frames or min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
             events=events,
             rest=RestCriterion(st["rest_kinetic"], st["rest_time"]),
         )
-        rise, t_rise = energy_rise(sim.times, sim.energies["total"], [e.time for e in events])
-        if (sim.success and rise <= ENERGY_RISE_TOL * scale) or attempt == retries:
+        # events fire at the first step boundary at or after their time
+        fired_at = [t for t, *_ in sim.events_fired]
+        rise, t_rise = energy_rise(sim.times, sim.energies["total"], fired_at)
+        attempts.append((dt, sim, effects, rise, t_rise))
+        if sim.success and rise <= ENERGY_RISE_TOL * scale:
             break
-        why = sim.message if not sim.success else _rise_message(rise, scale, t_rise)
-        rejected.append(f"dt = {st['dt']:.4g}: {why}")
-        st["dt"] *= 0.5
-    st["dt_retries"] = len(rejected)
+        dt *= 0.5
+    # the successful attempt with the smallest rise (else the last one)
+    done = [a for a in attempts if a[1].success]
+    best = min(done, key=lambda a: a[3]) if done else attempts[-1]
+    dt, sim, effects, rise, t_rise = best
+    rejected = [
+        f"dt = {a[0]:.4g}: "
+        + (a[1].message if not a[1].success else _rise_message(a[3], scale, a[4]))
+        for a in attempts
+        if a is not best
+    ]
+    st["dt"] = dt
+    st["dt_retries"] = len(attempts) - 1
     s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
     measures = turning_measures(sim.positions)
     # crossings, frame by frame, with the contact lines in force at that time
@@ -326,7 +339,10 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
             + (f" Try a smaller numerics.dt (this run: {st['dt']:.4g}).")
         )
     if rejected:
-        message += " Automatic dt halved after: " + "; ".join(rejected)
+        message += (
+            f" Automatic dt: {len(attempts)} attempts, this one kept; the others: "
+            + "; ".join(rejected)
+        )
     if unstable:
         outcome = "failed"
         status = "energy_rise"

@@ -563,7 +563,14 @@ def _apply_overrides(data: dict, overrides: dict[str, Any]) -> dict:
                 f"unknown section '{sec}'; allowed: {', '.join(SECTIONS)}."
                 + _suggest(sec, SECTIONS),
             )
-        if k not in SECTIONS[sec] or k == "events":
+        if sec == "drop" and k == "events":
+            raise SceneError(
+                key,
+                value,
+                "events cannot be set by an override (they are a list of tables); write "
+                "[[drop.events]] tables (time, s1 and/or s2) in a scene file",
+            )
+        if k not in SECTIONS[sec]:
             raise SceneError(
                 key,
                 value,
