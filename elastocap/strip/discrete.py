@@ -263,6 +263,13 @@ class DiscreteStrip:
     def __post_init__(self):
         if int(self.n) != self.n or self.n < 4:
             raise ValueError(f"n: got {self.n!r}; expected an integer number of edges >= 4")
+        for name, lo, strict in (("L", 0.0, True), ("B", 0.0, True), ("q", 0.0, False),
+                                 ("gamma", 0.0, False), ("area", 0.0, self.gamma > 0.0)):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and (v > lo if strict else v >= lo)):
+                raise ValueError(
+                    f"{name}: got {v!r}; expected a finite value {'>' if strict else '>='} {lo}"
+                )
         if self.gamma > 0.0 and not (0.0 < self.s1 < self.s2 < self.L):
             raise ValueError(
                 f"drop: got S1 = {self.s1}, S2 = {self.s2} (x = {self.x_end}, Delta = "
@@ -413,7 +420,8 @@ class DiscreteStrip:
 def discrete_strip_for(scene, n=None) -> DiscreteStrip:
     """The discrete strip of a scene with gravity and the ground (``fig3-strip``).
 
-    ``n`` defaults to ``numerics.n_edges`` of the scene's accuracy preset.
+    ``n`` defaults to the scene's impact resolution (``numerics.n_edges``, or the accuracy
+    preset's edges when it is 0, as :func:`elastocap.impact.impact_settings` resolves it).
     """
     if not (scene.effects.gravity > 0.0 and scene.effects.ground):
         raise ValueError(
@@ -421,7 +429,9 @@ def discrete_strip_for(scene, n=None) -> DiscreteStrip:
             f"{scene.effects.ground}; the strip statics needs gravity > 0 and ground = true"
         )
     if n is None:
-        n = scene.numerics.n_edges
+        from elastocap.impact import impact_settings
+
+        n = impact_settings(scene)["n_edges"]
     d = scene.drop
     return DiscreteStrip(
         int(n), scene.rod.length, scene.distance_from_end, d.wetted_length, d.area,

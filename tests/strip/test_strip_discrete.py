@@ -240,3 +240,14 @@ def test_open_state_at_large_x_is_stable_with_positive_reactions():
     X = S.positions(eq.u)
     assert X[-1, 0] > np.interp(S.L - S.x_end, S.s_nodes, X[:, 0])
     assert math.isclose(eq.energy, sum(eq.parts.values()), rel_tol=1e-14)
+
+
+def test_scene_default_resolution_and_bad_values_named():
+    from elastocap.scene import load_scene
+    from elastocap.strip.discrete import DiscreteStrip, discrete_strip_for
+
+    assert discrete_strip_for(load_scene("fig3-strip")).n == 198  # as the impact resolves it
+    for kw, name in ((dict(area=-0.36), "area"), (dict(B=0.0), "B"), (dict(q=-1.0), "q")):
+        args = {**dict(n=100, L=14.3, x_end=2.0, delta=1.16, area=0.36, gamma=40.0), **kw}
+        with pytest.raises(ValueError, match=rf"^{name}: got"):
+            DiscreteStrip(**args)
