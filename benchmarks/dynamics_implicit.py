@@ -40,7 +40,7 @@ from dyn_helpers import rod_from_angles  # noqa: E402
 
 L, AREA, GAMMA, DAMPING, N_EDGES = 4.6, 1.5, 1.0, 0.2, 100
 #: RATTLE's step in the impact run (fraction of the explicit bound), read from elastocap
-RATTLE_FRACTION = getattr(_impact, "DT_FRACTION", 0.5)
+RATTLE_FRACTION = _impact.DT_FRACTION
 FRAME_DT = 0.5
 
 

@@ -330,6 +330,7 @@ def test_outcome_near_the_threshold_agrees_with_rattle(delta):
     Mref = turning_measure(_impact(delta, False, 0.9).positions[-1])
     for k in (16, 64):
         r = _impact(delta, True, k)
+        assert r.status == "at_rest", f"k = {k}: {r.message}"
         M = turning_measure(r.positions[-1])
         assert (M > 1) == (Mref > 1) == (delta > 3.527), f"k = {k}: M = {M}, RATTLE {Mref}"
         # measured |dM| <= 4.3e-5 at k = 16 and 64

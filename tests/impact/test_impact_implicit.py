@@ -1,5 +1,5 @@
 """The impact run with the implicit stepper (numerics.integrator = "implicit"): the same
-outcomes and final shapes as RATTLE on supp-fig5, refused with a ground."""
+outcomes and final shapes as RATTLE on supp-fig5 and, with a ground, on fig3-strip."""
 
 import pytest
 

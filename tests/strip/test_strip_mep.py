@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from elastocap.strip._blas import blas_threads  # noqa: E402
 from elastocap.strip.discrete import (
     DiscreteStrip,
     minimize_energy,
@@ -24,41 +25,13 @@ from elastocap.strip.mep import (
 L, A, GAMMA = 14.3, 0.36, 40.0
 
 
-def _openblas_handles():
-    """(get, set) of the OpenBLAS libraries bundled with numpy and scipy, when present."""
-    import ctypes
-    import glob
-    import os
-
-    import scipy
-
-    out = []
-    for pkg in (np, scipy):
-        d = os.path.join(os.path.dirname(pkg.__file__), "..", pkg.__name__ + ".libs")
-        for lib in glob.glob(os.path.join(d, "*openblas*")):
-            c = ctypes.CDLL(lib)
-            for get, set_ in (("scipy_openblas_get_num_threads64_",
-                               "scipy_openblas_set_num_threads64_"),
-                              ("scipy_openblas_get_num_threads", "scipy_openblas_set_num_threads"),
-                              ("openblas_get_num_threads", "openblas_set_num_threads")):
-                if hasattr(c, get) and hasattr(c, set_):
-                    out.append((getattr(c, get), getattr(c, set_)))
-                    break
-    return out
-
-
 @pytest.fixture(scope="module", autouse=True)
 def one_blas_thread():
     """Small dense LAPACK calls (100 x 100) ran 19x slower with two OpenBLAS threads on the
     shared 2-core machine (barrier at n = 60: 33 s against 1.8 s); pin one thread for this
     module and restore the previous count afterwards (a no-op without OpenBLAS)."""
-    handles = _openblas_handles()
-    before = [g() for g, _s in handles]
-    for _g, s in handles:
-        s(1)
-    yield
-    for (_g, s), k in zip(handles, before, strict=True):
-        s(k)
+    with blas_threads(1):
+        yield
 
 
 def strip(n, x=3.0, delta=1.1):
