@@ -115,20 +115,28 @@ def _newton_log(log_a, x0, lo, hi, high):
     for _ in range(_NEWTON_MAXIT):
         if high:
             g, dg = _log_f_high(x)
-            g -= log_a
+        else:
+            g, dg = _log_f_low(x)
+        g -= log_a
+        if g == 0.0:
+            # an exact root: the step would be 0, land on the bracket end just set and
+            # trigger a bisection away from it (measured: 25 wasted iterations at a = 0.1)
+            return x
+        if high:
             # log f decreases in sig
             if g > 0.0:
                 lo = x
             else:
                 hi = x
         else:
-            g, dg = _log_f_low(x)
-            g -= log_a
             if g > 0.0:
                 hi = x
             else:
                 lo = x
         step = g / dg
+        if abs(step) <= _NEWTON_RTOL * abs(x):
+            # converged: a step this small may round onto the bracket end just set
+            return x - step
         xn = x - step
         if not (lo < xn < hi):
             xn = 0.5 * (lo + hi)
