@@ -228,4 +228,3 @@ def test_violent_landing_retries_rejected_steps_with_substeps():
     assert "rejected step(s)" in r.message
     assert r.positions[:, :, 1].min() >= 0.0
     assert r.constraint_error_max < 1e-12
-    assert r.wall_time < 1.0  # target for the strip scene
