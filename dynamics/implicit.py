@@ -322,6 +322,19 @@ def _node_index(k):
 
 
 @numba.njit(cache=True)
+def _node_rows_max(rhs, n):
+    """Largest |entry| of the node (momentum) rows of the KKT vector ``rhs`` (NaN-safe)."""
+    rmax = 0.0
+    for i in range(n):
+        b = _node_index(i)
+        for a in range(2):
+            r = abs(rhs[b + a])
+            if not r <= rmax:
+                rmax = r
+    return rmax
+
+
+@numba.njit(cache=True)
 def kkt_residual(x0, v0, d, xm, F, mu, winv, edge_len, dt, rhs):
     """Minus the Newton residual, in the interleaved ordering; returns its norms.
 
@@ -356,7 +369,6 @@ def kkt_residual(x0, v0, d, xm, F, mu, winv, edge_len, dt, rhs):
     n = x0.shape[0]
     m = n - 1
     half_dt2 = 0.5 * dt * dt
-    rmax = 0.0
     for i in range(n):
         b = _node_index(i)
         for a in range(2):
@@ -383,13 +395,7 @@ def kkt_residual(x0, v0, d, xm, F, mu, winv, edge_len, dt, rhs):
         c = abs(phi) * il
         if not c <= cmax:
             cmax = c
-    for i in range(n):
-        b = _node_index(i)
-        for a in range(2):
-            r = abs(rhs[b + a])
-            if not r <= rmax:
-                rmax = r
-    return rmax, cmax
+    return _node_rows_max(rhs, n), cmax
 
 
 @numba.njit(cache=True)
@@ -645,14 +651,7 @@ def ground_rows_residual(x0, d, held, z0, rhs, wnu):
             b = _node_index(i) + 1
             wnu[i] = -rhs[b]
             rhs[b] = -(x0[i, 1] + d[i, 1] - z0)
-    rmax = 0.0
-    for i in range(n):
-        b = _node_index(i)
-        for a in range(2):
-            r = abs(rhs[b + a])
-            if not r <= rmax:
-                rmax = r
-    return rmax
+    return _node_rows_max(rhs, n)
 
 
 @numba.njit(cache=True)

@@ -34,6 +34,7 @@ import numpy as np
 
 from dynamics import Damping, Event, Ground, Rod, simulate, simulate_implicit
 from dynamics.effects import Gravity
+from dynamics.reference import euler_bernoulli_omega
 from dynamics.stepper import RestCriterion, stable_dt
 from elastocap._version import __version__
 from elastocap.capillary import Capillary
@@ -153,8 +154,6 @@ def energy_rise(times, total, event_times) -> tuple[float, float]:
     edges = [-math.inf, *sorted(event_times), math.inf]
     for a, b in zip(edges[:-1], edges[1:], strict=True):
         idx = np.nonzero((times > a + eps) & (times < b - eps))[0]
-        if a == -math.inf:
-            idx = np.nonzero(times < b - eps)[0]
         if idx.size:
             seg = total[idx]
             rise[idx] = seg - np.minimum.accumulate(seg)
@@ -185,8 +184,10 @@ def impact_settings(scene: Scene) -> dict:
     dt_max = stable_dt(np.full(n, h), scene.rod.mass_per_length, scene.rod.bending_modulus)
     if num.integrator == "implicit":
         # no stability bound: dt is chosen for accuracy on the slow modes
-        omega1 = 22.373 * math.sqrt(scene.rod.bending_modulus / scene.rod.mass_per_length)
-        dt = num.dt or IMPLICIT_PERIOD_FRACTION * 2.0 * math.pi / (omega1 / (L * L))
+        omega1 = euler_bernoulli_omega(
+            "free-free", L, scene.rod.bending_modulus, scene.rod.mass_per_length
+        )
+        dt = num.dt or IMPLICIT_PERIOD_FRACTION * 2.0 * math.pi / omega1
         if scene.effects.ground and not num.dt:
             dt = min(dt, IMPLICIT_GROUND_BOUND_MULTIPLE * dt_max)
     else:
@@ -262,16 +263,18 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
     retries = DT_RETRIES if not scene.numerics.dt else 0
     attempts = []
     dt = st["dt"]
+    x0 = np.zeros((n + 1, 2))
+    x0[:, 0] = np.linspace(0.0, L, n + 1)
+    # the steppers copy the rod; the effects are made anew per attempt (events write into
+    # their parameters)
+    rod = Rod(
+        x0,
+        np.zeros_like(x0),
+        np.full(n, L / n),
+        scene.rod.mass_per_length,
+        scene.rod.bending_modulus,
+    )
     for _ in range(retries + 1):
-        x0 = np.zeros((n + 1, 2))
-        x0[:, 0] = np.linspace(0.0, L, n + 1)
-        rod = Rod(
-            x0,
-            np.zeros_like(x0),
-            np.full(n, L / n),
-            scene.rod.mass_per_length,
-            scene.rod.bending_modulus,
-        )
         effects, events = _effects(scene)
         stepper = simulate_implicit if scene.numerics.integrator == "implicit" else simulate
         sim = stepper(
