@@ -86,7 +86,17 @@ def _trace(args):
     scene = _load(args)
     prange = tuple(args.range) if args.range else None
     if scene.effects.gravity > 0 or scene.effects.ground:
-        # the strip on the ground: lift-off point as a free boundary (elastocap.strip)
+        if args.param == "drop.wetted_length" and scene.effects.ground:
+            # the strip on the ground, every contact topology (discrete strip)
+            from elastocap.strip.contact_branches import trace_contact_branches
+
+            progress = None
+            if not args.json:
+                def progress(label, br):
+                    print(f"  traced {label}: {len(br.segments)} segments, {br.status}",
+                          file=sys.stderr)
+            return trace_contact_branches(scene, args.param, prange, progress=progress)
+        # other parameters: one contact topology, the lift-off point as a free boundary
         from elastocap.strip.branches import trace_strip_branches
 
         return trace_strip_branches(scene, args.param, prange)
@@ -99,6 +109,9 @@ def _fold_report(bs) -> dict:
 
 
 def _print_folds(bs) -> None:
+    if hasattr(bs, "report_lines"):
+        print("\n".join(bs.report_lines()))
+        return
     print(
         f"{bs.scene.name}: {len(bs.branches)} branches in {bs.parameter} over "
         f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (N={bs.metadata['N']}, "
@@ -128,7 +141,11 @@ def cmd_branches(args) -> int:
     out = _out_dir(args, f"branches-{bs.scene.name}")
     paths = bs.save(out)
     png = out / "branches.png"
-    if type(bs).__name__ == "StripBranchSet":
+    if type(bs).__name__ == "ContactBranchSet":
+        from elastocap.strip.plot import plot_contact_branch_set
+
+        plot_contact_branch_set(bs, png)
+    elif type(bs).__name__ == "StripBranchSet":
         from elastocap.strip.plot import plot_strip_branch_set
 
         plot_strip_branch_set(bs, png)
@@ -354,7 +371,8 @@ def build_parser() -> argparse.ArgumentParser:
                 nargs=2,
                 type=float,
                 metavar=("LO", "HI"),
-                help="parameter range (default: (0.02 L, L) for the wetted length)",
+                help="parameter range (default: (0.02 L, L) for the wetted length; "
+                "(0.3, min(2.2, 1.95 x)) on the ground)",
             )
         if name in ("branches", "figures", "demo", "impact", "overlay"):
             p.add_argument("--out", metavar="DIR", help="output directory (default: out/...)")

@@ -316,6 +316,14 @@ class DiscreteStrip:
         """z_k of every node (the constraint values), shape (n + 1,)."""
         return self.positions(u)[:, 1]
 
+    def chord(self, u) -> float:
+        """Distance d between the contact points X(S1) and X(S2) (length)."""
+        X = self.positions(u)
+        s = self.s_nodes
+        dx = np.interp(self.s2, s, X[:, 0]) - np.interp(self.s1, s, X[:, 0])
+        dz = np.interp(self.s2, s, X[:, 1]) - np.interp(self.s1, s, X[:, 1])
+        return math.hypot(dx, dz)
+
     def constraint_jacobian(self, u) -> np.ndarray:
         """d z_k / du, shape (n + 1, n + 1): row k = (1, h cos theta_j for j < k, 0...)."""
         G = np.zeros((self.n + 1, self.n + 1))

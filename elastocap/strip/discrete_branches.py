@@ -46,11 +46,22 @@ from elastocap.strip.discrete import DiscreteStrip, Equilibrium, stability
 __all__ = ["ActiveSetEvent", "BranchSegment", "DiscreteBranch", "active_set_problem",
            "trace_discrete_branch"]
 
-# Centred-difference step of dF/dDelta (length): eps^(1/3) ~ 6e-6 balances truncation
-# against rounding. The capillary force is piecewise smooth in Delta (the contact points
-# cross nodes), so the quotient is first-order accurate only across a node; this affects
-# the corrector's rate, not the converged points (which solve F = 0).
+# Difference step of dF/dDelta (length): eps^(1/3) ~ 6e-6 balances truncation against
+# rounding. The capillary force is piecewise smooth in Delta: its slope jumps where a
+# contact point S1 or S2 crosses a node. A centred quotient straddling such a kink gives
+# the mean of the two slopes, and the corrector then converges only linearly (measured at
+# x = 2, n = 60, S2 on node 53 at Delta = 0.66333: max|F| stalled at 2.5e-9 after 12
+# iterations and the step collapsed to ds_min). Within one step of a kink the quotient is
+# one-sided, second order, on the side of the kink where Delta lies.
 _FD_DELTA = np.finfo(float).eps ** (1.0 / 3.0)
+# The branch has corners where a contact point crosses a node (the kinks above): the step
+# across one turns the tangent by up to 32 degrees (measured: x = 2, n = 60, S2 on node 56
+# at Delta = 2.0933, wrapped strip), above the package's default max_turn of 0.5 rad, so
+# the step collapsed to ds_min there. The corner is real (the piecewise-linear placement
+# of the contact points), located as an event and restarted from; 1.2 rad (69 degrees)
+# lets the step across it be accepted, and ds_max keeps steps short of a jump to another
+# branch.
+_MAX_TURN = 1.2
 # Default continuation settings. Steps in the weighted norm theta |du|^2 / N + (1 - theta)
 # dDelta^2: ds_max = 0.02 moves Delta by <~ 0.03 per step, below the natural continuation's
 # 0.05 that keeps edges within mep._JUMP of their previous values; newton_tol 1e-9 is ~1e-11
@@ -58,7 +69,7 @@ _FD_DELTA = np.finfo(float).eps ** (1.0 / 3.0)
 # round-off floor (~1e-11 at n = 100). Branch points are not sought: the fixed-set problem
 # is generic in Delta, and their determinant test costs an LU per point.
 _DEFAULTS = dict(ds0=0.005, ds_min=1e-7, ds_max=0.02, max_steps=400, newton_tol=1e-9,
-                 detect_branch_points=False, check_jacobian=False)
+                 detect_branch_points=False, check_jacobian=False, max_turn=_MAX_TURN)
 # Event guard: the event value of the node switched at the start of a segment is ~0 (of
 # either sign, or exactly 0) at that point; there it is left out of the minimum, so that
 # the start neither fires the event again nor hides a sign change of another node (an
@@ -67,6 +78,15 @@ _DEFAULTS = dict(ds0=0.005, ds_min=1e-7, ds_max=0.02, max_steps=400, newton_tol=
 # round-off is ~1e-13; the first step moves Delta by >~ 1e-4).
 _START_TOL = 1e-11
 _START_U = 1e-8
+# A contact point within this (relative, in Delta) of a node is on it: there the side of
+# the one-sided dF/dDelta is the way the segment goes (Brent locates a kink to ~1e-12).
+_ON_KINK = 1e-11
+# The contact lines closing around the drop end a branch: at chord d -> 0 the strip has
+# wrapped the whole drop (A1 -> 0 with d), the cap degenerates and beyond it the strip
+# would cross itself. Measured at x = 2 and 3 (n = 143): the corrector stalls near
+# Delta = 2.1792 with d = 8e-4 = 4e-4 Delta; 1e-2 Delta (as
+# elastocap.strip.branches._CHORD_STOP) stops well before.
+_CHORD_STOP = 1e-2
 
 
 @dataclass
@@ -76,10 +96,11 @@ class ActiveSetEvent:
     Attributes
     ----------
     kind : str
-        ``"lift_off"`` (a held node's reaction crosses 0) or ``"touch_down"`` (a free node
-        reaches the ground).
+        ``"lift_off"`` (a held node's reaction crosses 0), ``"touch_down"`` (a free node
+        reaches the ground) or ``"contact_lines_meet"`` (the chord d falls to
+        ``_CHORD_STOP`` Delta: the strip has wrapped the whole drop; ends the branch).
     node : int
-        Node index k (0 .. n).
+        Node index k (0 .. n); -1 for ``contact_lines_meet``.
     delta : float
         Wetted length Delta at the event (length), located on the arclength.
     u : ndarray, shape (n + 1,)
@@ -87,7 +108,8 @@ class ActiveSetEvent:
     reactions : ndarray, shape (n + 1,)
         Reactions (force) at the event, 0 off the held set.
     value : float
-        r_k (force) for a lift-off, z_k (length) for a touch-down, at the located point.
+        r_k (force) for a lift-off, z_k (length) for a touch-down, d (length) when the
+        contact lines meet, at the located point.
     precision : float
         Arclength bracket of the location (the package's ``precision``).
     """
@@ -155,7 +177,9 @@ class DiscreteBranch:
     segment to the next (``delta``, ``node``, ``kind``, ``index`` (before, after));
     ``status`` is that of the last segment
     (``"event"`` when it ended at an event and no restart was asked, ``"parameter_bound"``
-    at the end of ``delta_range``, ``"max_segments"``, or the continuation's status).
+    at the end of ``delta_range``, ``"contact_lines_meet"`` where the strip has wrapped
+    the whole drop, ``"restart_failed"``, ``"max_segments"``, or the continuation's
+    status).
     """
 
     segments: list
@@ -193,12 +217,16 @@ class _Cache:
         self._d = {}
 
     def at(self, delta):
-        s = self._d.get(delta)
-        if s is None:
-            if len(self._d) > 8:
-                self._d.clear()
+        """The strip at ``delta``; None where the drop would leave it (S1 <= 0 or S2 >= L)."""
+        if delta in self._d:
+            return self._d[delta]
+        if len(self._d) > 8:
+            self._d.clear()
+        try:
             s = self.strip.with_(delta=float(delta))
-            self._d[delta] = s
+        except ValueError:
+            s = None
+        self._d[delta] = s
         return s
 
 
@@ -233,16 +261,26 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
     cache = _Cache(strip)
     idx = np.arange(1, N)
 
+    # Reactions enter v in units of gamma: the capillary force at a contact line (~gamma)
+    # lands on the held nodes under it, so in force units dr/dDelta would dominate the
+    # tangent and its jump where a contact point crosses a node would read as a turn of
+    # the branch of ~75 degrees (x = 2, n = 60), refused by the corrector's max_turn.
+    rs = strip.gamma if strip.gamma > 0.0 else 1.0
+
     def split(v):
         r = np.zeros(N)
-        r[A] = v[N:]
+        r[A] = rs * v[N:]
         return v[:N], r
 
     def join(u, r):
-        return np.concatenate([u, np.asarray(r)[A]])
+        return np.concatenate([u, np.asarray(r)[A] / rs])
 
     def residual(v, p):
         s = cache.at(p)
+        if s is None:
+            # a Newton iterate put the drop off the strip: a failed step for the
+            # continuation (it halves the step), not an exception
+            return np.full(N + na, np.nan)
         u, r = split(v)
         _E, g, _H = s.derivatives(u, hessian=False)
         G = s.constraint_jacobian(u)[A]
@@ -262,13 +300,30 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
         G = s.constraint_jacobian(u)[A]
         J = np.zeros((N + na, N + na))
         J[:N, :N] = lagrangian_hessian(v, p)
-        J[:N, N:] = -G.T
+        J[:N, N:] = -rs * G.T
         J[N:, :N] = c * G
         return J
 
+    c0, h = strip.L - strip.x_end, strip.h
+
+    def nearest_kink(p):
+        # Delta where S1 = c0 - Delta/2 or S2 = c0 + Delta/2 sits on a node j h
+        k1 = 2.0 * (c0 - h * round((c0 - 0.5 * p) / h))
+        k2 = 2.0 * (h * round((c0 + 0.5 * p) / h) - c0)
+        return k1 if abs(k1 - p) <= abs(k2 - p) else k2
+
+    side = [0.0]  # set by the driver at a segment starting on a kink: the way Delta goes
+
     def dfdp(v, p):
         e = _FD_DELTA * (1.0 + abs(p))
-        return (residual(v, p + e) - residual(v, p - e)) / (2.0 * e)
+        k = nearest_kink(p)
+        if abs(p - k) >= e:
+            return (residual(v, p + e) - residual(v, p - e)) / (2.0 * e)
+        sg = 1.0 if p >= k else -1.0
+        if abs(p - k) <= _ON_KINK * (1.0 + abs(p)) and side[0] != 0.0:
+            sg = side[0]
+        return sg * (-3.0 * residual(v, p) + 4.0 * residual(v, p + sg * e)
+                     - residual(v, p + 2.0 * sg * e)) / (2.0 * e)
 
     def constraint_jacobian(v, p):
         return cache.at(p).constraint_jacobian(v[:N])[A]
@@ -285,7 +340,33 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
                            hessian=lagrangian_hessian,
                            constraint_jacobian=constraint_jacobian if na else None,
                            observables=observables, name=f"discrete strip, |A| = {na}")
-    return prob, {"split": split, "join": join, "A": A, "c": c, "cache": cache}
+    return prob, {"split": split, "join": join, "A": A, "c": c, "cache": cache,
+                  "side": side, "nearest_kink": nearest_kink}
+
+
+def _kink_events(strip, v0, p0, sign):
+    """Event functions vanishing where S1 (``kink_s1``) or S2 (``kink_s2``) crosses a node.
+
+    sin(pi S / h) changes sign at every node (dimensionless). At the start point of a
+    segment that begins on a kink the value is taken a hair (``_ON_KINK``) along the way
+    Delta goes (``sign``), so that the start is on the far side and fires nothing.
+    """
+    N = strip.size
+    c0, h = strip.L - strip.x_end, strip.h
+
+    def at_start(v, p):
+        return abs(p - p0) <= _START_TOL and \
+            float(np.max(np.abs(v[:N] - v0[:N]))) <= _START_U
+
+    def g1(v, p):
+        q = p + sign * 1e3 * _ON_KINK if at_start(v, p) else p
+        return math.sin(math.pi * (c0 - 0.5 * q) / h)
+
+    def g2(v, p):
+        q = p + sign * 1e3 * _ON_KINK if at_start(v, p) else p
+        return math.sin(math.pi * (c0 + 0.5 * q) / h)
+
+    return {"kink_s1": g1, "kink_s2": g2}
 
 
 def _event_function(strip, tools, guard, v0, p0):
@@ -298,10 +379,14 @@ def _event_function(strip, tools, guard, v0, p0):
 
     def values(v, p):
         u, r = split(v)
-        z = cache.at(p).heights(u)
-        val = np.full(N, np.inf)
+        st = cache.at(p)
+        z = st.heights(u)
+        val = np.full(N + 1, np.inf)
         val[A] = r[A] / scale
         val[free_nodes] = c * z[free_nodes] / scale
+        # last entry: the contact lines closing around the drop (ends the branch)
+        stop = _CHORD_STOP * st.delta
+        val[N] = (st.chord(u) - stop) / stop
         if guard is not None and abs(p - p0) <= _START_TOL and \
                 float(np.max(np.abs(v[:N] - v0[:N]))) <= _START_U:
             val[guard] = math.inf
@@ -328,14 +413,30 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=None):
     p0 = float(strip.delta)
     g, values = _event_function(strip, tools, guard, v0, p0)
     st = settings.replace(p_min=lo, p_max=hi)
-    br = continue_branch(prob, v0, p0, st, events={"contact": g}, stop_on=("contact",),
+    if settings.direction == 0 and tangent is None:
+        raise ValueError("settings.direction: got 0; expected +1 or -1 (a chain of segments "
+                         "follows one way; trace twice for both)")
+    sign = float(np.sign(tangent[-1])) if tangent is not None else float(settings.direction)
+    tools["side"][0] = sign
+    if tangent is not None:
+        # a given tangent already points the way (continue_branch reverses it for
+        # direction = -1, which turned a restarted downward segment back up)
+        st = st.replace(direction=1)
+    events = {"contact": g, **_kink_events(strip, v0, p0, sign)}
+    br = continue_branch(prob, v0, p0, st, events=events, stop_on=tuple(events),
                          tangent=tangent)
     return prob, tools, br, values
 
 
 def _collect(strip, active, prob, tools, br, values):
     split, cache = tools["split"], tools["cache"]
-    ev_sp = next((sp for sp in br.special_points if sp.kind == "event" and sp.located), None)
+    evs = [sp for sp in br.special_points if sp.kind == "event" and sp.located]
+    ev_sp = None
+    if evs:
+        # events of the last step: the first one along it (nearest the previous point)
+        last = max(sp.index for sp in evs)
+        prev = br.p[last - 1] if last >= 1 else br.p[0]
+        ev_sp = min((sp for sp in evs if sp.index == last), key=lambda sp: abs(sp.p - prev))
     stopped = br.status == STOPPED and ev_sp is not None
     m = ev_sp.index if stopped else len(br.p)  # points before the event
     V = list(br.u[:m])
@@ -347,8 +448,16 @@ def _collect(strip, active, prob, tools, br, values):
         vals = values(ev_sp.u, ev_sp.p)
         k = int(np.argmin(np.abs(vals)))
         u, r = split(ev_sp.u)
-        kind = "lift_off" if active[k] else "touch_down"
-        val = float(r[k]) if active[k] else float(cache.at(ev_sp.p).heights(u)[k])
+        if ev_sp.name in ("kink_s1", "kink_s2"):
+            st = cache.at(ev_sp.p)
+            sc = st.s1 if ev_sp.name == "kink_s1" else st.s2
+            k = int(round(sc / st.h))
+            kind, val = ("contact_point_on_node", float(sc - k * st.h))
+        elif k == strip.size:
+            kind, k, val = "contact_lines_meet", -1, float(cache.at(ev_sp.p).chord(u))
+        else:
+            kind = "lift_off" if active[k] else "touch_down"
+            val = float(r[k]) if active[k] else float(cache.at(ev_sp.p).heights(u)[k])
         event = ActiveSetEvent(kind, k, float(ev_sp.p), u.copy(), r.copy(), val,
                                float(ev_sp.precision))
     I = [int(i) for i in br.stability[:m]]
@@ -455,7 +564,9 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
         status, message = seg.status, seg.message
         if seg.event is None:
             break
-        if guard is not None and seg.event.node == guard and len(seg.delta) <= 2:
+        kink = seg.event.kind == "contact_point_on_node"
+        if guard is not None and not kink and seg.event.node == guard and \
+                len(seg.delta) <= 2:
             status = "restart_failed"
             message = (f"the segment restarted at Delta = {cur.delta:.12g} with node {guard} "
                        f"switched undid the switch at its first step ({seg.event.kind}): the "
@@ -470,11 +581,34 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
                 turning.append({"delta": float(prev.event.delta), "node": prev.event.node,
                                 "kind": prev.event.kind,
                                 "index": (int(prev.index[-2]), int(seg.index[1]))})
-        events.append(seg.event)
+        if not kink:
+            events.append(seg.event)
+        if seg.event.kind == "contact_lines_meet":
+            status = "contact_lines_meet"
+            message = (f"the contact lines closed around the drop (chord {seg.event.value:.3g}"
+                       f" = {_CHORD_STOP:g} Delta) at Delta = {seg.event.delta:.12g}: the "
+                       "strip has wrapped the whole drop; beyond, it would cross itself")
+            break
         message = (f"{seg.event.kind} of node {seg.event.node} at Delta = "
                    f"{seg.event.delta:.12g}")
         if not restart:
             break
+        if kink:
+            # same contact set on the far side of the kink: the tangent from the one-sided
+            # dF/dDelta there, Delta going on the same way (a corner, not a fold)
+            cur = strip.with_(delta=seg.event.delta)
+            u0, r0 = seg.event.u.copy(), seg.event.reactions.copy()
+            nprob, ntools = active_set_problem(cur, active)
+            d_in = seg.delta[-1] - seg.delta[-2] if seg.delta.size > 1 else \
+                (tangent[-1] if tangent is not None else float(settings.direction))
+            ntools["side"][0] = float(np.sign(d_in))
+
+            def orient(t, d_in=d_in):
+                return t[-1] * d_in
+
+            tangent = _tangent(nprob, ntools["join"](u0, r0), cur.delta, orient)
+            guard = None
+            continue
         # the next segment: updated set, from the event, away from the invalid side
         k = seg.event.node
         active = active.copy()

@@ -8,7 +8,7 @@ import numpy as np
 
 from elastocap.strip.shape import strip_full_shape
 
-__all__ = ["plot_strip_branch_set"]
+__all__ = ["plot_contact_branch_set", "plot_strip_branch_set"]
 
 
 def plot_strip_branch_set(bs, path=None, y="measure", insets=3):
@@ -58,3 +58,90 @@ def plot_strip_branch_set(bs, path=None, y="measure", insets=3):
     if path is not None:
         fig.savefig(Path(path), dpi=110)
     return fig
+
+
+def plot_contact_branch_set(bs, path=None, insets=3):
+    """Branches of a :class:`~elastocap.strip.contact_branches.ContactBranchSet`.
+
+    Left: energy above the flat state against Delta (solid stable, dashed unstable, grey
+    where the strip crosses itself or the interface crosses it), smooth folds (x), contact
+    folds (o) and the stable window ends (vertical lines). Middle: the turning theta(L)/pi.
+    Right: a few shapes of each branch on the ground. Returns the figure; writes ``path``.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(12, 7.5))
+    gs = fig.add_gridspec(2, 2, height_ratios=[3, 2])
+    ax, am, axs = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[0, 1]), \
+        fig.add_subplot(gs[1, :])
+    for b, pts in enumerate(bs.points):
+        d = pts["delta"]
+        if not d.size:
+            continue
+        col = f"C{b % 10}"
+        stable = pts["index"] == 0
+        ok = pts["admissible"] == 1.0
+        for a, key in ((ax, "energy_above_flat"), (am, "measure")):
+            y = pts[key]
+            for mask, ls, c in ((stable & ok, "-", col), (~stable & ok, "--", col),
+                                (~ok, ":", "0.6")):
+                a.plot(d, np.where(mask, y, np.nan), ls, color=c, lw=1.2,
+                       label=bs.labels[b] if (a is ax and ls == "-") else None)
+    for f in bs.folds:
+        mk = "kx" if f["kind"] == "smooth" else "ko"
+        ax.plot(f["value"], f["energy"] - _flat(bs, f["value"]), mk, mfc="none", ms=5)
+        am.plot(f["value"], f["measure"], mk, mfc="none", ms=5)
+    w = bs.window
+    for key, ls in (("open_max", "-."), ("encapsulated_min", ":")):
+        v = (w.get(key) or {}).get("value")
+        if v is not None:
+            for a in (ax, am):
+                a.axvline(v, color="k", lw=0.7, ls=ls)
+    ax.set_xlabel("Delta")
+    ax.set_ylabel("E - E(flat strip)")
+    fig.suptitle(f"{bs.scene.name}, x = {bs.scene.distance_from_end:g}, n = {bs.n} edges: "
+                 "solid stable, dashed unstable, dotted inadmissible (strip crosses itself);"
+                 " x smooth fold, o contact fold", fontsize=9)
+    ax.legend(fontsize=6, loc="best")
+    am.set_xlabel("Delta")
+    am.set_ylabel("theta(L) / pi")
+    am.set_title(f"stable open up to {_fmt(w, 'open_max')}, stable encapsulated from "
+                 f"{_fmt(w, 'encapsulated_min')}", fontsize=8)
+    from elastocap.strip.contact_branches import strip_and_interface
+    from elastocap.strip.discrete import discrete_strip_for
+
+    strip = discrete_strip_for(bs.scene, bs.n)
+    for b, br in enumerate(bs.branches):
+        U = [u for s in br.segments for u in s.u]
+        D = [d for s in br.segments for d in s.delta]
+        for i in np.linspace(0, len(U) - 1, min(insets, len(U))).astype(int):
+            X, iface, _d = strip_and_interface(strip.with_(delta=float(D[i])), U[i])
+            axs.plot(X[:, 0], X[:, 1], color=f"C{b % 10}", lw=0.8)
+            axs.plot(iface[:, 0], iface[:, 1], color="tab:blue", lw=0.5)
+    axs.axhline(0.0, color="0.5", lw=0.8)
+    L, x = bs.scene.rod.length, bs.scene.distance_from_end
+    axs.set_xlim(L - x - 4.0, L + 0.5)
+    axs.set_aspect("equal")
+    axs.set_title("shapes on the ground (impact centre at L - x)", fontsize=8)
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(Path(path), dpi=110)
+    return fig
+
+
+def _flat(bs, delta):
+    from elastocap.strip.barrier import flat_energy
+
+    d = bs.scene.drop
+    return flat_energy(d.area, d.line_tension, delta)
+
+
+def _fmt(w, key):
+    v = (w.get(key) or {}).get("value")
+    if v is None:
+        return "-"
+    e = w[key].get("error_estimate")
+    return f"{v:.4f}" + (f" ± {e:.1e}" if e is not None and e == e else "")
