@@ -1,17 +1,20 @@
 """The static bistability band of the strip of Fig 3 on the axes of the dynamic Fig 3d.
 
-For each drop position x / l_eg, the discrete strip on the ground (``elastocap.strip``)
-gives, by continuation in Delta bisected to 1e-3 (:func:`elastocap.strip.windows.window_at`):
+For each drop position x / l_eg, every equilibrium branch of the discrete strip on the
+ground is traced in Delta with all contact topologies
+(:func:`elastocap.strip.contact_branches.trace_contact_branches`: seeds from a deposition
+and from the folded strip, pseudo-arclength continuation through lift-offs, touch-downs
+and folds, all located), giving
 
-* ``open_max``: where the open branch (a quasi-static deposition, continued up) ends;
-* ``wrapped_min``: where the encapsulated branch (the folded strip, continued down) ends.
+* ``open_max``: the largest Delta of a stable open state (a located fold or contact fold);
+* ``wrapped_min``: the smallest Delta of a stable encapsulated state.
 
 Both are mapped to We^(1/2) with the scene's spreading law, (Delta - Delta0) / (2 R c), and
 drawn over the runs and the boundary of the damped dynamic phase diagram read from
 ``docs/img/fig3d.json`` (``elastocap figures --only fig3d``); without that file the static
 band is drawn alone and the title says so. Each x is computed at two resolutions; an end
-whose two values differ by more than ``TOL_DELTA`` (or whose branch ended differently) is
-drawn hollow and listed in the JSON under ``unsettled``.
+whose two values differ by more than ``TOL_DELTA`` is drawn hollow and listed in the JSON
+under ``unsettled``.
 """
 
 from __future__ import annotations
@@ -23,19 +26,17 @@ from pathlib import Path
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.strip._blas import blas_threads
-from elastocap.strip.discrete import discrete_strip_for
-from elastocap.strip.windows import window_at
+from elastocap.strip.contact_branches import trace_contact_branches
 
 #: Two resolutions whose ends differ by more than this (in Delta, units of l_eg) leave the
 #: end unsettled: 0.01 is 0.035 in We^(1/2) for fig3-strip, half the bracket width (0.0625)
 #: of the dynamic boundary in fig3d.json, so a settled end is finer than the boundary.
 TOL_DELTA = 0.01
 #: Full mode: x / l_eg and the two resolutions. n = 143 is h = 0.1 l_eg (the benchmark's
-#: resolution); n = 286 halves h. Measured on 2 shared cores: 1-6 s per x at n = 143,
-#: 10-45 s at n = 286.
-FULL_X = (1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0)
-FULL_N = (143, 286)
-#: Fast mode (the tests): one x, coarse. ~1 s.
+#: resolution), 214 is 1.5x finer. Measured on 2 shared cores: 60-90 s per x.
+FULL_X = (1.25, 1.5, 1.75, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0)
+FULL_N = (143, 214)
+#: Fast mode (the tests): one x, coarse. ~5 s.
 FAST_X = (1.5,)
 FAST_N = (50, 100)
 #: Delta scanned (l_eg): 0.5 is below Delta0 = 0.594 of fig3-strip (We^(1/2) < 0: no
@@ -57,44 +58,53 @@ def _shown(path: Path) -> str:
 
 
 def compute(scene, xs, ns, tol=TOL_DELTA) -> list[dict]:
-    """Windows at each x and resolution, mapped to We^(1/2); one :func:`summarize` record
-    per x."""
-    template = discrete_strip_for(scene, ns[-1])
+    """All branches at each x (resolution ``ns[0]``, refined at ``ns[1]``) and the window
+    ends mapped to We^(1/2); one :func:`summarize` record per x."""
     rows = []
     with blas_threads(1):
         for x in xs:
-            ws = [window_at(template, x, n, d_lo=D_LO, d_hi=D_HI).to_dict() for n in ns]
-            rows.append(summarize(x, ws, scene.spreading, tol))
+            sc = scene.with_overrides({"drop.distance_from_end": float(x)})
+            bs = trace_contact_branches(sc, prange=(D_LO, min(D_HI, 1.95 * x)), n=ns[0],
+                                        n_refined=ns[1])
+            rows.append(summarize(x, bs, scene.spreading, tol))
     return rows
 
 
-def summarize(x, windows: list[dict], spreading, tol=TOL_DELTA) -> dict:
-    """One x: ``x``, ``n`` (the resolutions), ``windows`` (as given, coarse to fine), and
-    from the finest: ``open_max``, ``wrapped_min`` (Delta), their ``*_we_sqrt``, how each
-    ended (``open_end``, ``wrapped_end``) and ``open_settled`` / ``wrapped_settled``: the
-    two finest resolutions agree within ``tol`` (after raising both to Delta0: below it
-    every impact finds the state), the branch ended the same way, and no fresh state of
-    that kind exists just beyond the end (``*_beyond``); ``open_change`` /
-    ``wrapped_change``: the difference compared.
-    """
-    row = {"x": float(x), "n": [w["n"] for w in windows], "windows": windows}
-    fine = windows[-1]
-    coarse = windows[-2] if len(windows) > 1 else None
+def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
+    """One x: ``x``, ``n`` (the two resolutions), from the refined run ``open_max`` and
+    ``wrapped_min`` (Delta) and their ``*_we_sqrt``; ``open_end`` / ``wrapped_end``
+    (``"scan_limit"`` when the stable stretch reaches the scanned range's end, else how it
+    ends: ``"smooth_fold"``, ``"contact_fold"``, ``"kind_change"``); ``open_change`` /
+    ``wrapped_change``: the difference between the two
+    resolutions (after raising both to Delta0: below it every impact finds the state) and
+    ``open_settled`` / ``wrapped_settled``: it is at most ``tol``; ``folds``: the located
+    folds at the coarse resolution; ``wall_time_s``."""
+    w = bs.window
+    lo, hi = bs.prange
+    row = {"x": float(x), "n": [bs.n, bs.metadata["n_edges_refined"]],
+           "folds": [{k: f[k] for k in ("value", "kind", "node", "event", "stability_change",
+                                        "encapsulated", "admissible", "error_estimate")}
+                     for f in bs.folds],
+           "branches": [{k: b[k] for k in ("label", "range", "status")}
+                        for b in bs.summary()["branches"]],
+           "wall_time_s": bs.metadata["wall_time_s"]}
     d0 = spreading.delta0
-    for side, key in (("open", "open_max"), ("wrapped", "wrapped_min")):
-        v, end = fine[key], fine[f"{side}_end"]
+    for side, key, wkey in (("open", "open_max", "open_max"),
+                            ("wrapped", "wrapped_min", "encapsulated_min")):
+        coarse, fine = w[wkey]["value"], w[wkey].get("value_refined")
+        v = fine if fine is not None else math.nan
         row[key] = v
+        row[f"{key}_coarse"] = coarse if coarse is not None else math.nan
         row[f"{key}_we_sqrt"] = spreading.we_sqrt(v) if math.isfinite(v) else math.nan
-        row[f"{side}_end"] = end
-        if coarse is None:
+        how = w[wkey].get("how_refined") or w[wkey].get("how")
+        at_bound = math.isfinite(v) and (abs(v - lo) < 1e-9 or abs(v - hi) < 1e-9)
+        row[f"{side}_end"] = "scan_limit" if at_bound else how
+        if coarse is None or fine is None:
             row[f"{side}_change"], row[f"{side}_settled"] = math.nan, False
             continue
-        ch = abs(max(v, d0) - max(coarse[key], d0))
-        both_low = v < d0 and coarse[key] < d0
+        ch = abs(max(fine, d0) - max(coarse, d0))
         row[f"{side}_change"] = ch
-        row[f"{side}_settled"] = bool(
-            ch <= tol and end != "seed_failed" and fine[f"{side}_beyond"] is not True
-            and (both_low or coarse[f"{side}_end"] == end))
+        row[f"{side}_settled"] = bool(ch <= tol)
     return row
 
 
@@ -144,7 +154,7 @@ def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[P
     ----------
     out_dir : str or Path
     fast : bool
-        One x at coarse resolution (~1 s) instead of the full grid (~5 min).
+        One x at coarse resolution (~5 s) instead of the full grid (~12 min).
     fig3d : str or Path, optional
         The dynamic phase diagram's JSON; default ``docs/img/fig3d.json`` of the repository.
     """
@@ -162,8 +172,8 @@ def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[P
 
     path = Path(fig3d) if fig3d is not None else _default_fig3d()
     dyn = json.loads(path.read_text()) if path.is_file() else None
-    what = (f"static window (discrete strip, n = {ns[-2]} and {ns[-1]}, Δ bisected to 1e-3) "
-            "→ We$^{1/2}$ by the spreading law")
+    what = (f"static window (discrete strip, all contact topologies, n = {ns[0]} and "
+            f"{ns[1]}, folds located) → We$^{{1/2}}$ by the spreading law")
     if dyn is not None:
         title = (f"Fig 3d (model, damped, from {path.name}) with the {what}")
         fig = plot_phase_diagram(dyn, None, title=title)
@@ -188,9 +198,10 @@ def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[P
     fig.savefig(png, bbox_inches="tight")
 
     unsettled = [{"x": r["x"], "end": side, "n": r["n"], "change": r[f"{side}_change"],
-                  "ends": [w[f"{side}_end"] for w in r["windows"]],
-                  "another_state_beyond": [w[f"{side}_beyond"] for w in r["windows"]]}
-                 for r in rows for side in ("open", "wrapped") if not r[f"{side}_settled"]]
+                  "values": [r[f"{key}_coarse"], r[key]]}
+                 for r in rows for side, key in (("open", "open_max"),
+                                                 ("wrapped", "wrapped_min"))
+                 if not r[f"{side}_settled"]]
     data = {
         "rows": rows,
         "unsettled": unsettled,
@@ -199,18 +210,17 @@ def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[P
                       "coefficient": sp.coefficient},
         "dynamic_diagram": _shown(path) if dyn is not None else None,
         "notes": [
-            "open_max: last Delta where the open branch (deposition at Delta = 0.6, continued "
-            "up) is stable; wrapped_min: the same for the encapsulated branch (fold at "
-            "Delta = 1.6, continued down). Both to 1e-3 in Delta.",
-            "open_end / wrapped_end: how the branch ended (elastocap.strip.mep.END_REASONS); "
-            f"scan_limit: it reached Delta = {D_LO} or {D_HI}. A wrapped_min below Delta0 "
-            "(We^(1/2) < 0) is drawn at We^(1/2) = 0: every impact finds that state.",
-            "open_beyond / wrapped_beyond (per window): a fresh deposition / fold 2e-3 beyond "
-            "the end still gives a stable state of that kind, i.e. another branch exists.",
-            f"settled: the two resolutions agree within {TOL_DELTA} in Delta (both raised to "
-            "Delta0), the branch ended the same way (or both lie below Delta0), and no fresh "
-            "state of that kind exists just beyond the end at the finer n; a necessary "
-            "check, not a proof of convergence.",
+            "open_max: the largest Delta of a stable, admissible open state on any traced "
+            "branch (a located fold or contact fold); wrapped_min: the smallest Delta of a "
+            "stable, admissible encapsulated state (the paper's criterion). Values from "
+            "the finer resolution; *_coarse from the coarser.",
+            f"open_end / wrapped_end: scan_limit when the stable stretch reaches Delta = "
+            f"{D_LO} or the range's top (no end inside the range). A wrapped_min below "
+            "Delta0 (We^(1/2) < 0) is drawn at We^(1/2) = 0: every impact finds that state.",
+            f"settled: the two resolutions agree within {TOL_DELTA} in Delta (both raised "
+            "to Delta0); a necessary check, not a proof of convergence. An end can move "
+            "between resolutions because the branch reaching it changes (another sequence "
+            "of contact changes), not only by the discretization error of one fold.",
         ],
     }
     js = out / "strip_bistability.json"

@@ -156,6 +156,9 @@ class ContactBranchSet:
         ``error_estimate``), ``bistable`` (open_max > encapsulated_min).
     events : list of dict
         Every active-set change (``delta``, ``kind``, ``node``, ``branch``).
+    kind_changes : list of dict
+        Where the paper's verdict flips along a branch without a fold (``value``,
+        ``index``, ``from``, ``admissible``, ``branch``), located to ~1e-12 in Delta.
     branch_points, maxwell_points : list
         Empty (not searched for here; kept for the CLI's common report).
     metadata : dict
@@ -175,6 +178,7 @@ class ContactBranchSet:
     branch_points: list = field(default_factory=list)
     maxwell_points: list = field(default_factory=list)
     metadata: dict = field(default_factory=dict)
+    kind_changes: list = field(default_factory=list)
 
     def summary(self) -> dict:
         """Plain data for ``--json``: special points, window, one line per branch."""
@@ -198,6 +202,7 @@ class ContactBranchSet:
             "solver": "discrete strip, every contact topology (elastocap.strip.contact_branches)",
             "folds": self.folds,
             "window": self.window,
+            "kind_changes": self.kind_changes,
             "branch_points": self.branch_points,
             "maxwell_points": self.maxwell_points,
             "events": len(self.events),
@@ -326,6 +331,7 @@ def _special(strip: DiscreteStrip, branches, labels) -> tuple[list, list]:
             folds.append({"value": f["delta"], "kind": "smooth", "node": None, "event": None,
                           "stability_change": list(f["index"]) if f["index"] else None,
                           "measure": m["measure"], "energy": m["energy"],
+                          "encapsulated": bool(m["encapsulated"]),
                           "admissible": bool(m["admissible"]), "branch": labels[b],
                           "located": f["located"]})
         for tp in br.turning_points:
@@ -334,6 +340,7 @@ def _special(strip: DiscreteStrip, branches, labels) -> tuple[list, list]:
             folds.append({"value": tp["delta"], "kind": "contact", "node": tp["node"],
                           "event": tp["kind"], "stability_change": list(tp["index"]),
                           "measure": m["measure"], "energy": m["energy"],
+                          "encapsulated": bool(m["encapsulated"]),
                           "admissible": bool(m["admissible"]), "branch": labels[b],
                           "located": True})
         for e in br.events:
@@ -348,22 +355,81 @@ def _special(strip: DiscreteStrip, branches, labels) -> tuple[list, list]:
     return sorted(uniq.values(), key=lambda f: f["value"]), events
 
 
-def _window(points) -> dict:
-    open_max, enc_min = -math.inf, math.inf
+def _kind_changes(strip: DiscreteStrip, branches, labels) -> list:
+    """Where the paper's criterion flips along a branch, located to ~1e-12 in Delta.
+
+    Between two consecutive traced points of a segment whose verdicts differ, Delta is
+    bisected, each state solved by Newton at the segment's contact set from the nearer
+    point; the criterion x(S_c) - x(L) is continuous along the branch, so the flip is where
+    the free end passes above the impact centre. Returns dicts ``value``, ``index`` (the
+    stability index there), ``branch``.
+    """
+    out = []
+    for b, br in enumerate(branches):
+        for seg in br.segments:
+            enc = [is_encapsulated(strip.with_(delta=float(d)), u)
+                   for d, u in zip(seg.delta, seg.u, strict=True)]
+            for i in range(len(enc) - 1):
+                if enc[i] == enc[i + 1] or seg.delta[i] == seg.delta[i + 1]:
+                    continue
+                a, c = float(seg.delta[i]), float(seg.delta[i + 1])
+                ua = seg.u[i]
+                ea = enc[i]
+                ok = True
+                for _ in range(60):
+                    if abs(c - a) <= 1e-12 * (1.0 + abs(a)):
+                        break
+                    m = 0.5 * (a + c)
+                    eq = solve_equilibrium(strip.with_(delta=m), ua, active=seg.active,
+                                           tol=1e-11, max_iter=30)
+                    if not eq.success:
+                        ok = False
+                        break
+                    if is_encapsulated(strip.with_(delta=m), eq.u) == ea:
+                        a, ua = m, eq.u
+                    else:
+                        c = m
+                if ok:
+                    m = point_measures(strip.with_(delta=a), ua)
+                    out.append({"value": 0.5 * (a + c), "index": int(seg.index[i]),
+                                "from": "encapsulated" if ea else "open",
+                                "admissible": bool(m["admissible"]), "branch": labels[b]})
+    return out
+
+
+def _window(points, folds=(), kind_changes=()) -> dict:
+    """Largest Delta of a stable open state, smallest of a stable encapsulated one.
+
+    A stable stretch of a branch ends at a located special point: a fold, a contact fold
+    where the index changes, or a kind change (the verdict flips on a stable stretch, no
+    fold); those count with the traced stable points, and ``how`` says which one gave
+    each end (``"smooth_fold"``, ``"contact_fold"``, ``"kind_change"``, or ``"range"``: a
+    traced point, the stable stretch reaching the range's end).
+    """
+    opens, encs = [], []
     for pts in points:
         ok = (pts["index"] == 0) & (pts["admissible"] == 1.0)
         enc = pts["encapsulated"] == 1.0
         if np.any(ok & ~enc):
-            open_max = max(open_max, float(pts["delta"][ok & ~enc].max()))
+            opens.append((float(pts["delta"][ok & ~enc].max()), "range"))
         if np.any(ok & enc):
-            enc_min = min(enc_min, float(pts["delta"][ok & enc].min()))
-    fin = math.isfinite
+            encs.append((float(pts["delta"][ok & enc].min()), "range"))
+    for f in folds:
+        if f["admissible"] and f["stability_change"] and 0 in f["stability_change"]:
+            (encs if f["encapsulated"] else opens).append((f["value"], f"{f['kind']}_fold"))
+    for k in kind_changes:
+        if k["index"] == 0 and k["admissible"]:
+            opens.append((k["value"], "kind_change"))
+            encs.append((k["value"], "kind_change"))
+    top = max(opens) if opens else None
+    bot = min(encs) if encs else None
     return {
-        "open_max": {"value": open_max if fin(open_max) else None, "error_estimate": math.nan},
-        "encapsulated_min": {"value": enc_min if fin(enc_min) else None,
-                             "error_estimate": math.nan},
-        "bistable": bool(fin(open_max) and fin(enc_min) and open_max > enc_min),
-        "width": (open_max - enc_min) if fin(open_max) and fin(enc_min) else None,
+        "open_max": {"value": top[0] if top else None, "how": top[1] if top else None,
+                     "error_estimate": math.nan},
+        "encapsulated_min": {"value": bot[0] if bot else None,
+                             "how": bot[1] if bot else None, "error_estimate": math.nan},
+        "bistable": bool(top and bot and top[0] > bot[0]),
+        "width": (top[0] - bot[0]) if top and bot else None,
     }
 
 
@@ -397,7 +463,7 @@ def _nearest(value, candidates):
 
 def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", prange=None,
                            n: int | None = None, refine: bool = True,
-                           progress=None) -> ContactBranchSet:
+                           progress=None, n_refined: int | None = None) -> ContactBranchSet:
     """Search, trace and classify the branches of a strip-on-the-ground scene in Delta.
 
     Parameters
@@ -415,6 +481,8 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         Repeat at ``REFINE`` n edges for the error estimates (about 2-3x the time).
     progress : callable(label, branch), optional
         Called after each traced direction.
+    n_refined : int, optional
+        Edges of the refined run (default ``round(REFINE * n)``).
 
     Returns
     -------
@@ -427,14 +495,19 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         branches, labels = _trace_all(strip, lo, hi, progress)
         points = [_branch_points(strip, br) for br in branches]
         folds, events = _special(strip, branches, labels)
-        window = _window(points)
+        kinds = _kind_changes(strip, branches, labels)
+        window = _window(points, folds, kinds)
         n_fine = None
         if refine:
-            n_fine = int(round(REFINE * strip.n))
+            n_fine = int(n_refined) if n_refined is not None else int(round(REFINE * strip.n))
+            if n_fine == strip.n:
+                raise ValueError(f"n_refined: got {n_fine}; expected it to differ from n = "
+                                 f"{strip.n}")
             fine = strip.with_(n=n_fine)
             fb, fl = _trace_all(fine, lo, hi)
             ffolds, _ = _special(fine, fb, fl)
-            fwin = _window([_branch_points(fine, br) for br in fb])
+            fwin = _window([_branch_points(fine, br) for br in fb], ffolds,
+                           _kind_changes(fine, fb, fl))
             for f in folds:
                 same = [g["value"] for g in ffolds if g["kind"] == f["kind"]
                         and g["stability_change"] == f["stability_change"]]
@@ -444,13 +517,14 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
                 if a is not None and b is not None:
                     window[key]["error_estimate"] = abs(a - b)
                 window[key]["value_refined"] = b
+                window[key]["how_refined"] = fwin[key]["how"]
             window["bistable_refined"] = fwin["bistable"]
             window["width_refined"] = fwin["width"]
         else:
             for f in folds:
                 f["error_estimate"] = math.nan
     bs = ContactBranchSet(scene, parameter, (lo, hi), strip.n, branches, labels, points,
-                          folds, window, events)
+                          folds, window, events, kind_changes=kinds)
     bs.metadata = {
         "scene": scene.name,
         "parameter": parameter,

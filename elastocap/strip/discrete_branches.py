@@ -430,7 +430,11 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=None):
 
 def _collect(strip, active, prob, tools, br, values):
     split, cache = tools["split"], tools["cache"]
-    evs = [sp for sp in br.special_points if sp.kind == "event" and sp.located]
+    # a kink that Brent could not locate (the corrector failed on the arc between the two
+    # points, seen next to the contact lines meeting) is taken at the step's end: a
+    # corner is no constraint violation, so that point is a valid restart
+    evs = [sp for sp in br.special_points if sp.kind == "event" and (
+        sp.located or sp.name in ("kink_s1", "kink_s2"))]
     ev_sp = None
     if evs:
         # events of the last step: the first one along it (nearest the previous point)
