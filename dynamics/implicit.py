@@ -40,12 +40,20 @@ Solver
 Newton on ``(D, mu = dt**2/2 lam)``.  The matrix holds the mass, the exact bending Hessian
 (analytic, :func:`bending_hessian_add`; a 5-colour finite-difference version,
 :func:`hessian_columns_add`, checks it in the tests), the constraint gradients and their
-curvature.  Force effects (gravity, the capillary force) are left out of it: their
-stiffness is small against ``M / dt**2`` for moderate steps, so the simplified Newton still
-converges, linearly at a rate ``~ dt**2 |K_ext| / (4 m)``.  Measured on supp-fig5 impacts
-(100 edges): 2-4 iterations a step at 4-16x the explicit bound, 5-7 at 64x; an
-encapsulating run (Delta = 4) needs 12 at 64x and 22 at 128x, where the missing capillary
-stiffness dominates.  The factorisation is reused for ``JACOBIAN_AGE`` steps and refreshed
+curvature, and the stiffness of the force effects that supply the optional ``stiffness``
+hook (:mod:`dynamics.effects`): its band part is added to the band matrix, its low-rank
+part (the drop couples its two contact lines, far apart along the rod) enters by Woodbury's
+formula between the two sweeps of the band solve (:func:`lowrank_setup`,
+:func:`lowrank_correct`), when it matters (:data:`LOWRANK_MIN_RATE`).  Effects without the
+hook (gravity: zero stiffness) are left out and cost nothing; a force's missing stiffness
+slows the simplified Newton to a linear rate ``~ dt**2 |K_ext| / (4 m)``.  Measured on
+supp-fig5 impacts (100 edges): 4-5 iterations a step at 16x the explicit bound either way;
+an encapsulating run (Delta = 4) needs 6.1 at 64x and 6.4 at 128x with the drop's
+stiffness, 11.6 and 22 (with 426 rejected steps) without.  On fig3-strip (gamma = 40, a
+ground) the drop's stiffness saves 1 iteration of 7.3 at 4x the bound and 8 of 16 at 16x;
+what remains there is set by the active-set changes of the ground contact (each one
+refactors) and by the unresolved fast bending waves, which make the predictor of a step
+miss by ~4 % of an edge.  The factorisation is reused for ``JACOBIAN_AGE`` steps and refreshed
 when the iteration slows (``REFRESH_RATE``, ``REFRESH_MOVE``).  Unknowns are ordered node by
 node with each edge's multiplier after its second node, so the KKT matrix is banded
 (7 sub- and super-diagonals); it is factored without pivoting (every leading block is a
@@ -75,11 +83,12 @@ from __future__ import annotations
 
 import os
 import time
+from types import SimpleNamespace
 
 import numba
 import numpy as np
 
-from .effects import KINDS
+from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK
 from .stepper import (
     _STATUS,
     _fingerprint,
@@ -97,6 +106,8 @@ __all__ = [
     "band_lu",
     "band_solve",
     "band_lu_nopivot",
+    "band_forward",
+    "band_backward",
     "kkt_assemble",
     "kkt_residual",
     "kkt_update",
@@ -106,6 +117,10 @@ __all__ = [
     "ground_rows_residual",
     "ground_rows_matrix",
     "ground_update",
+    "stiffness_band_add",
+    "lowrank_rate",
+    "lowrank_setup",
+    "lowrank_correct",
     "KL",
 ]
 
@@ -114,11 +129,11 @@ __all__ = [
 #: 3 unknowns apart per node, so coordinate (k, 0) reaches (k+2, 1) at offset 7.
 KL = 7
 
-#: Newton iteration cap per step.  Measured means of 2-7 iterations (simplified Newton,
-#: external forces out of the matrix) at dt up to 64x the explicit bound, 12 for an
-#: encapsulating impact at 64x; 25 leaves room for that slower linear rate before the step
-#: is rejected and retried with substeps (a cap of 8 made the 64x run slower, with 1000
-#: rejected steps, and the 128x run fail).
+#: Newton iteration cap per step.  Measured means of 4-8 iterations at dt up to 64x the
+#: explicit bound (supp-fig5) and 16x (fig3-strip), 12 for an encapsulating supp-fig5 impact
+#: at 64x without the drop's stiffness in the matrix; 25 leaves room for a slower linear
+#: rate before the step is rejected and retried with substeps (a cap of 8 made that 64x run
+#: slower, with 1000 rejected steps, and the 128x run fail).
 NEWTON_MAX_ITER = 25
 
 #: Convergence: a Newton correction of the positions below NEWTON_TOL_X * h_min, or a
@@ -165,8 +180,8 @@ MIN_JOINT_DEN = 1e-3
 #: fraction of an edge since the last one (sum of the corrections' max norms).  Measured:
 #: a released wavy rod (bending only, exact Jacobian, 16x the bound) needs repeated
 #: refreshes (full Newton) through its nonlinear first iterations, while an encapsulating
-#: supp-fig5 impact at 64x refreshed 6 times a step to no avail (the capillary stiffness
-#: is not in the matrix): 0.19 s instead of 0.42 s with one refresh a step.
+#: supp-fig5 impact at 64x without the capillary stiffness in the matrix refreshed 6 times
+#: a step to no avail: 0.19 s instead of 0.42 s with one refresh a step.
 REFRESH_MOVE = 0.01
 
 #: Finite-difference step of the coloured FD bending Hessian (:func:`hessian_columns_add`,
@@ -187,6 +202,22 @@ MAX_CONTACT_ROUNDS = 8
 #: never releases a resting node, and far below the weight of a node over a step
 #: (``dt**2 g / 2 ~ 1e-4`` at dt = 0.02).
 CONTACT_PULL_TOL = 1e-10
+
+#: The capacitance matrix ``I + Vt A^{-1} L`` of the Woodbury solve (the low-rank part of
+#: the force stiffness, :func:`lowrank_setup`) is treated as singular when a pivot falls
+#: below this fraction of its largest entry: its condition number then bounds the accuracy
+#: of the Newton correction by ~1e-4 at best, worse than leaving the low-rank part out
+#: (the simplified Newton of before, which converges linearly).
+SMALL_PIVOT = 1e-12
+
+#: The low-rank part of the force stiffness enters the Newton matrix only when the
+#: simplified Newton iteration would contract at a rate above this without it
+#: (:func:`lowrank_rate`): below, it saves less than it costs (an O(k N) correction in
+#: every solve, k band sweeps per factorisation).  Measured: supp-fig5 at the automatic dt
+#: (rate 0.004 at Delta = 2.5, 0.05 at 4) ran 10-25 % slower with it for the same or 0.8
+#: fewer iterations a step; fig3-strip (0.11) broke even; 0.85 and above (supp-fig5 at 64x
+#: the bound) halved the iterations.
+LOWRANK_MIN_RATE = 0.1
 
 #: (module, kernel) of the one constraint effect the implicit stepper handles.
 _GROUND_REF = ("dynamics.effects", "ground_kernel")
@@ -288,28 +319,86 @@ def band_lu_nopivot(ab, kl, ku, tiny):
 
 
 @numba.njit(cache=True)
-def band_solve(ab, piv, kl, ku, b):
-    """Solve ``A y = b`` in place with the factors of :func:`band_lu` (``piv[0] < 0``:
-    of :func:`band_lu_nopivot`)."""
+def band_forward(ab, piv, kl, b):
+    """First half of :func:`band_solve`: ``b <- L^{-1} P b`` in place (row interchanges
+    and unit lower factor, both interleaved as in LAPACK ``dgbtrs``)."""
     N = ab.shape[0]
     pivoted = piv[0] >= 0
-    w = kl + ku if pivoted else ku
     for k in range(N):
-        p = piv[k] if pivoted else k
-        if p != k:
-            tmp = b[k]
-            b[k] = b[p]
-            b[p] = tmp
+        if pivoted:
+            p = piv[k]
+            if p != k:
+                tmp = b[k]
+                b[k] = b[p]
+                b[p] = tmp
         bk = b[k]
         if bk != 0.0:
             for r in range(k + 1, min(k + kl, N - 1) + 1):
                 b[r] -= ab[r, k - r + kl] * bk
+    return b
+
+
+@numba.njit(cache=True)
+def band_backward(ab, piv, kl, ku, b):
+    """Second half of :func:`band_solve`: ``b <- U^{-1} b`` in place (``U`` has
+    ``kl + ku`` super-diagonals after pivoting, ``ku`` without)."""
+    N = ab.shape[0]
+    w = kl + ku if piv[0] >= 0 else ku
     for k in range(N - 1, -1, -1):
         s = b[k]
         for c in range(k + 1, min(k + w, N - 1) + 1):
             s -= ab[k, c - k + kl] * b[c]
         b[k] = s / ab[k, kl]
     return b
+
+
+@numba.njit(cache=True)
+def band_solve(ab, piv, kl, ku, b):
+    """Solve ``A y = b`` in place with the factors of :func:`band_lu` (``piv[0] < 0``:
+    of :func:`band_lu_nopivot`)."""
+    band_forward(ab, piv, kl, b)
+    return band_backward(ab, piv, kl, ku, b)
+
+
+@numba.njit(cache=True)
+def band_forward_multi(ab, piv, kl, Y, m, start):
+    """:func:`band_forward` on the columns ``Y[:, :m]`` (shape (N, >= m)), all zero in
+    rows ``< start`` (the sweep starts there: what a zero head leaves unchanged)."""
+    N = ab.shape[0]
+    pivoted = piv[0] >= 0
+    for k in range(start, N):
+        if pivoted:
+            p = piv[k]
+            if p != k:
+                for j in range(m):
+                    tmp = Y[k, j]
+                    Y[k, j] = Y[p, j]
+                    Y[p, j] = tmp
+        for r in range(k + 1, min(k + kl, N - 1) + 1):
+            f = ab[r, k - r + kl]
+            if f != 0.0:
+                for j in range(m):
+                    Y[r, j] -= f * Y[k, j]
+    return Y
+
+
+@numba.njit(cache=True)
+def band_backward_transpose_multi(ab, piv, kl, ku, Y, m, start):
+    """Solve ``U^T H = Y[:, :m]`` in place (``H = (Y^T U^{-1})^T``, the rows of
+    ``Y^T U^{-1}`` as columns), ``Y`` zero in rows ``< start``, where ``H`` is zero too
+    (``U^T`` is lower triangular)."""
+    N = ab.shape[0]
+    w = kl + ku if piv[0] >= 0 else ku
+    for k in range(start, N):
+        for c in range(max(start, k - w), k):
+            f = ab[c, k - c + kl]
+            if f != 0.0:
+                for j in range(m):
+                    Y[k, j] -= f * Y[c, j]
+        inv = 1.0 / ab[k, kl]
+        for j in range(m):
+            Y[k, j] *= inv
+    return Y
 
 
 # ----------------------------------------------------------------------------- KKT system
@@ -406,7 +495,8 @@ def kkt_assemble(x0, d, xm, mu, winv, edge_len, ab):
     Writes ``I - 1/2 W sum_j mu_j Hphi_j`` (``Hphi_j`` the constant Hessian of the
     quadratic constraint), the multiplier columns ``-W G(xm)^T`` and the constraint rows
     ``G(x0 + D)``.  The bending block ``dt**2/4 W H_b(xm)`` is added by
-    :func:`hessian_columns_add`; external forces are left out (simplified Newton).
+    :func:`bending_hessian_add`, the force effects' stiffness by
+    :func:`stiffness_band_add` and :func:`lowrank_setup`.
     ``ab`` has shape ``(3 n - 1, 3 KL + 1)`` (banded LU layout, fill-in slots zeroed).
     """
     n = x0.shape[0]
@@ -696,6 +786,222 @@ def ground_update(x0, d, held, released, wnu, z0, tol_pull):
     return changed
 
 
+# ----------------------------------------------------------------------------- stiffness
+
+
+@numba.njit(cache=True)
+def stiffness_band_add(K, q, winv, ab):
+    """Add ``q W K`` to the band matrix ``ab``: the band part of the force effects'
+    stiffness (``K`` in the node-band layout of the ``stiffness`` hook,
+    :mod:`dynamics.effects`, shape (n, 2, 2 STIFFNESS_BAND + 1, 2), force / length)."""
+    n = K.shape[0]
+    nb = STIFFNESS_BAND
+    kl = KL
+    for i in range(n):
+        rb = _node_index(i)
+        for o in range(2 * nb + 1):
+            j = i + o - nb
+            if j < 0 or j >= n:
+                continue
+            cb = _node_index(j)
+            for a in range(2):
+                for b in range(2):
+                    h = K[i, a, o, b]
+                    if h != 0.0:
+                        ab[rb + a, cb + b - (rb + a) + kl] += q * winv[i, a] * h
+
+
+@numba.njit(cache=True)
+def _small_lu(S, spiv, k):
+    """In-place LU with partial pivoting of ``S[:k, :k]``; -1 if a pivot is below
+    SMALL_PIVOT times the largest entry or 1, the scale of ``S = I + ...`` (numerically
+    singular)."""
+    big = 1.0
+    for r in range(k):
+        for c in range(k):
+            if abs(S[r, c]) > big:
+                big = abs(S[r, c])
+    for c in range(k):
+        p = c
+        best = abs(S[c, c])
+        for r in range(c + 1, k):
+            if abs(S[r, c]) > best:
+                best = abs(S[r, c])
+                p = r
+        spiv[c] = p
+        if not best > SMALL_PIVOT * big:
+            return -1
+        if p != c:
+            for cc in range(k):
+                tmp = S[c, cc]
+                S[c, cc] = S[p, cc]
+                S[p, cc] = tmp
+        inv = 1.0 / S[c, c]
+        for r in range(c + 1, k):
+            f = S[r, c] * inv
+            S[r, c] = f
+            for cc in range(c + 1, k):
+                S[r, cc] -= f * S[c, cc]
+    return 0
+
+
+@numba.njit(cache=True)
+def lowrank_rate(U, C, k, q, winv):
+    """Estimated rate ``q max(W) |U^T C U|_F`` at which the simplified Newton iteration
+    would contract without the low-rank stiffness ``U^T C U`` in its matrix (the
+    Frobenius norm, from the k x k Gram matrix of ``U``: O(k**2 n))."""
+    n = U.shape[1]
+    gm = np.zeros((k, k))
+    for r in range(k):
+        for c in range(r, k):
+            acc = 0.0
+            for i in range(n):
+                acc += U[r, i, 0] * U[c, i, 0] + U[r, i, 1] * U[c, i, 1]
+            gm[r, c] = acc
+            gm[c, r] = acc
+    # |U^T C U|_F**2 = trace(C Gm C Gm)
+    cg = np.zeros((k, k))
+    for r in range(k):
+        for c in range(k):
+            acc = 0.0
+            for j in range(k):
+                acc += C[r, j] * gm[j, c]
+            cg[r, c] = acc
+    tr = 0.0
+    for r in range(k):
+        for c in range(k):
+            tr += cg[r, c] * cg[c, r]
+    wmax = 0.0
+    for i in range(n):
+        wmax = max(wmax, winv[i, 0], winv[i, 1])
+    return q * wmax * np.sqrt(max(tr, 0.0))
+
+
+@numba.njit(cache=True)
+def lowrank_setup(ab, piv, U, C, k, q, winv, held, G, H, S, spiv):
+    """Prepare the Woodbury solve of ``(A + L Vt) y = b`` once ``A`` (the band Newton
+    matrix) is factored: the low-rank part ``q W U^T C U`` of the force stiffness.
+
+    Parameters
+    ----------
+    ab, piv : the factors ``P A = L_f U_f`` of :func:`band_lu` / :func:`band_lu_nopivot`.
+    U : ndarray, shape (>= k, n, 2)
+        Low-rank node vectors of the ``stiffness`` hooks.
+    C : ndarray, shape (>= k, >= k)
+        Their coefficients, ``sum_rs C[r, s] U[r] U[s]^T`` in force / length.
+    k : int
+        Rank.
+    q : float
+        ``dt**2 / 4``, the factor of the stiffness in the Newton matrix.
+    winv : ndarray, shape (n, 2)
+        Inverse masses (the momentum rows are scaled by them).
+    held : ndarray, shape (n,)
+        Nonzero for nodes held by the ground: their vertical row is the contact
+        constraint, without stiffness (``L`` is zero there).
+    G, H : ndarray, shape (3 n - 1, >= k)
+        Overwritten with ``G = L_f^{-1} P L`` (``L[:, r] = q W U[r]``) and
+        ``H = (Vt U_f^{-1})^T`` (``Vt = C U^T``), in the interleaved KKT ordering; both are
+        zero above row ``start``.
+    S, spiv : ndarray, shape (>= k, >= k) and (>= k,)
+        Overwritten with the LU factors of the capacitance matrix ``I + H^T G`` (k x k).
+
+    Returns
+    -------
+    start : int
+        First row where ``G`` or ``H`` may be nonzero, or -1 if ``I + H^T G`` is
+        numerically singular (then so is the Newton matrix ``A + L Vt``; the caller
+        drops the low-rank part and keeps ``A``).
+
+    Notes
+    -----
+    ``A^{-1} = U_f^{-1} L_f^{-1} P``, so Woodbury's
+    ``(A + L Vt)^{-1} b = A^{-1} b - A^{-1} L (I + Vt A^{-1} L)^{-1} Vt A^{-1} b`` is
+    ``U_f^{-1} (t - G (I + H^T G)^{-1} H^T t)`` with ``t = L_f^{-1} P b``: the correction
+    goes between the two sweeps of the band solve (:func:`lowrank_correct`).  The
+    right-hand sides ``L`` and ``Vt^T`` are zero before the first node the stiffness
+    touches, and so are ``G`` and ``H`` (triangular solves): setting them up costs k
+    partial forward and k partial transposed backward sweeps, a fraction of k full band
+    solves when the drop sits near the end of the rod (fig3-strip).  Exact, unlike
+    leaving the far couplings of the drop out of the band.
+    """
+    n = U.shape[1]
+    N = ab.shape[0]
+    first = n
+    for r in range(k):
+        for i in range(n):
+            if U[r, i, 0] != 0.0 or U[r, i, 1] != 0.0:
+                if i < first:
+                    first = i
+                break
+    if first == n:
+        return -1
+    # row interchanges can move an entry up by at most kl rows
+    start = max(0, _node_index(first) - KL)
+    for j in range(start, N):
+        for r in range(k):
+            G[j, r] = 0.0
+            H[j, r] = 0.0
+    for i in range(first, n):
+        b = _node_index(i)
+        for a in range(2):
+            for r in range(k):
+                acc = 0.0
+                for s_ in range(k):
+                    acc += C[r, s_] * U[s_, i, a]
+                H[b + a, r] = acc
+                if not (a == 1 and held[i] != 0.0):
+                    G[b + a, r] = q * winv[i, a] * U[r, i, a]
+    band_forward_multi(ab, piv, KL, G, k, start)
+    band_backward_transpose_multi(ab, piv, KL, KL, H, k, start)
+    for r in range(k):
+        for c in range(k):
+            S[r, c] = 1.0 if r == c else 0.0
+    for j in range(start, N):
+        for r in range(k):
+            hr = H[j, r]
+            if hr != 0.0:
+                for c in range(k):
+                    S[r, c] += hr * G[j, c]
+    if _small_lu(S, spiv, k) != 0:
+        return -1
+    return start
+
+
+@numba.njit(cache=True)
+def lowrank_correct(t, k, start, G, H, S, spiv, tv):
+    """``t <- t - G (I + H^T G)^{-1} H^T t`` in place, between the forward and the
+    backward sweep of the band solve (data of :func:`lowrank_setup`); ``tv`` (>= k,) is
+    scratch."""
+    N = t.shape[0]
+    for r in range(k):
+        tv[r] = 0.0
+    for j in range(start, N):
+        tj = t[j]
+        if tj != 0.0:
+            for r in range(k):
+                tv[r] += H[j, r] * tj
+    for c in range(k):
+        p = spiv[c]
+        if p != c:
+            tmp = tv[c]
+            tv[c] = tv[p]
+            tv[p] = tmp
+    for r in range(k):
+        for c in range(r):
+            tv[r] -= S[r, c] * tv[c]
+    for r in range(k - 1, -1, -1):
+        acc = tv[r]
+        for c in range(r + 1, k):
+            acc -= S[r, c] * tv[c]
+        tv[r] = acc / S[r, r]
+    for j in range(start, N):
+        acc = 0.0
+        for r in range(k):
+            acc += G[j, r] * tv[r]
+        t[j] -= acc
+    return t
+
+
 # ----------------------------------------------------------------------------- codegen
 
 #: Body of the generated module: the effect-specific ``_forces`` and ``_damp`` are
@@ -704,28 +1010,64 @@ def ground_update(x0, d, held, released, wnu, z0, tol_pull):
 #: functions) for the same reason as :mod:`dynamics.stepper`: numba caches it on disk.
 _TEMPLATE = '''
 @numba.njit(cache=True)
-def _jacobian(x0, d, xm, mu, winv, edge_len, B, dt, ab, piv, held):
+def _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, K, stiff):
     kkt_assemble(x0, d, xm, mu, winv, edge_len, ab)
     bending_hessian_add(xm, edge_len, B, 0.25 * dt * dt, winv, ab)
+    if HAS_STIFFNESS:
+        if stiff:
+            stiffness_band_add(K, 0.25 * dt * dt, winv, ab)
     if HAS_GROUND:
         ground_rows_matrix(held, ab)
+
+
+@numba.njit(cache=True)
+def _jacobian(x0, d, xm, vm, t, mu, winv, edge_len, mass, B, dt, ab, piv, held, lr,
+              stiff FARGS):
+    K = lr[0]
+    k = 0
+    if HAS_STIFFNESS:
+        lr[7][0] = 0
+        if stiff:
+            K[:, :, :, :] = 0.0
+            lr[1][:, :, :] = 0.0
+            lr[2][:, :] = 0.0
+            k = _stiffness(xm, vm, t, edge_len, mass, K, lr[1], lr[2] FARGS)
+    _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, K, stiff)
     # no pivoting unless a pivot is tiny (see band_lu_nopivot)
-    info = band_lu_nopivot(ab, KL, KL, 1e-10)
-    if info == 0:
+    res = 0
+    if band_lu_nopivot(ab, KL, KL, 1e-10) == 0:
         piv[0] = -1
-        return 0
-    kkt_assemble(x0, d, xm, mu, winv, edge_len, ab)
-    bending_hessian_add(xm, edge_len, B, 0.25 * dt * dt, winv, ab)
-    if HAS_GROUND:
-        ground_rows_matrix(held, ab)
-    if band_lu(ab, piv, KL, KL) != 0:
-        return -1
-    return 1
+    else:
+        _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, K, stiff)
+        if band_lu(ab, piv, KL, KL) != 0:
+            return -1
+        res = 1
+    if HAS_STIFFNESS:
+        if k > 0 and lowrank_rate(lr[1], lr[2], k, 0.25 * dt * dt, winv) >= LOWRANK_MIN_RATE:
+            start = lowrank_setup(ab, piv, lr[1], lr[2], k, 0.25 * dt * dt, winv, held,
+                                  lr[3], lr[4], lr[5], lr[6])
+            if start >= 0:
+                lr[7][0] = k
+                lr[7][2] = start
+                lr[7][3] += 1
+            else:
+                lr[7][1] += 1
+    return res
+
+
+@numba.njit(cache=True)
+def _solve(ab, piv, rhs, lr):
+    band_forward(ab, piv, KL, rhs)
+    if HAS_STIFFNESS:
+        k = lr[7][0]
+        if k > 0:
+            lowrank_correct(rhs, k, lr[7][2], lr[3], lr[4], lr[5], lr[6], lr[8])
+    band_backward(ab, piv, KL, KL, rhs)
 
 
 @numba.njit(cache=True)
 def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, diag,
-          opts PARGS):
+          opts, lr PARGS):
     n = x.shape[0]
     x0 = ws[0]
     v0 = ws[1]
@@ -744,6 +1086,9 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
     max_iter = int(opts[2])
     max_age = opts[3]
     tol_pull = opts[4]
+    stiff = opts[5] != 0.0
+    refresh_rate = opts[6]
+    refresh_move = opts[7]
     z0 = _z0(t PARGS)
     _damp(x, v, t, edge_len, mass, half PARGS)
     for i in range(n):
@@ -806,9 +1151,10 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
             # floor) (again in the same step only if the iterate has moved since: a fresh
             # matrix that still contracts slowly near where it was made is missing the
             # external forces' stiffness, which no refresh adds)
-            if diag[8] >= max_age or (theta > REFRESH_RATE
-                                      and (not refreshed or moved > REFRESH_MOVE * h_min)):
-                info = _jacobian(x0, d, xm, mu, winv, edge_len, B, dt, ab, piv, held)
+            if diag[8] >= max_age or (theta > refresh_rate
+                                      and (not refreshed or moved > refresh_move * h_min)):
+                info = _jacobian(x0, d, xm, vm, t + half, mu, winv, edge_len, mass, B, dt,
+                                 ab, piv, held, lr, stiff FARGS)
                 diag[10] += 1
                 if info == 1:
                     diag[1] += 1
@@ -819,7 +1165,7 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
                 moved = 0.0
                 if info != 0:
                     break
-            band_solve(ab, piv, KL, KL, rhs)
+            _solve(ab, piv, rhs, lr)
             dmax = kkt_update(d, mu, rhs)
             moved += dmax
             it += 1
@@ -878,7 +1224,7 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
 
 @numba.njit(cache=True)
 def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy,
-        diag, rest, opts PARGS):
+        diag, rest, opts, lr PARGS):
     n = x.shape[0]
     acc = ws[5]
     xb = ws[10]
@@ -897,7 +1243,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
         mub[:] = mu
         hb[:] = held
         st = _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, diag,
-                   opts PARGS)
+                   opts, lr PARGS)
         if st < 0:
             # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps
             for level in range(1, MAX_HALVINGS + 1):
@@ -911,7 +1257,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
                 h = dt / sub
                 for j in range(sub):
                     st = _step(x, v, t + j * h, h, edge_len, mass, winv, B, ws, mu, ab, piv,
-                               rhs, energy, diag, opts PARGS)
+                               rhs, energy, diag, opts, lr PARGS)
                     if st < 0:
                         break
                 if st >= 0:
@@ -959,14 +1305,18 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
 
 
 def _generate_source(refs):
-    """Source of an implicit stepper module for ``refs = [(kind, module, name), ...]``."""
-    imports, P, forces, damps, ground = [], [], [], [], []
-    for j, (kind, mod, name) in enumerate(refs):
+    """Source of an implicit stepper module for ``refs = [(kind, module, name, stiffness),
+    ...]``, ``stiffness`` the (module, name) of a force effect's stiffness hook or None."""
+    imports, P, forces, damps, ground, stiff = [], [], [], [], [], []
+    for j, (kind, mod, name, hook) in enumerate(refs):
         alias = f"_k{j}"
         P.append(f"p{j}")
         if kind == "force":
             imports.append(f"from {mod} import {name} as {alias}")
             forces.append((alias, f"p{j}"))
+            if hook is not None:
+                imports.append(f"from {hook[0]} import {hook[1]} as _s{j}")
+                stiff.append((f"_s{j}", f"p{j}"))
         elif kind == "damping":
             imports.append(f"from {mod} import {name} as {alias}")
             damps.append((alias, f"p{j}"))
@@ -986,13 +1336,17 @@ def _generate_source(refs):
          "from dynamics.bending import bending_force_add",
          "from dynamics.constraints import constraint_error",
          "from dynamics.implicit import (FINAL_C, KL, MAX_CONTACT_ROUNDS, MAX_HALVINGS,",
-         "                               REFRESH_MOVE, REFRESH_RATE, band_lu,",
-         "                               band_lu_nopivot, band_solve, bending_hessian_add,",
-         "                               ground_rows_matrix, ground_rows_residual,",
-         "                               ground_update, kkt_assemble, kkt_residual,",
-         "                               kkt_update, midpoint_ok)",
+         "                               LOWRANK_MIN_RATE, STIFFNESS_RANK,",
+         "                               band_backward, band_forward, band_lu,",
+         "                               band_lu_nopivot,",
+         "                               bending_hessian_add, ground_rows_matrix,",
+         "                               ground_rows_residual, ground_update, kkt_assemble,",
+         "                               kkt_residual, kkt_update, lowrank_correct,",
+         "                               lowrank_rate, lowrank_setup, midpoint_ok,",
+         "                               stiffness_band_add)",
          *imports, "",
-         f"HAS_GROUND = {bool(ground)}", "", "",
+         f"HAS_GROUND = {bool(ground)}",
+         f"HAS_STIFFNESS = {bool(stiff)}", "", "",
          "@numba.njit(cache=True)",
          f"def _z0(t{''.join(', ' + p for p in P)}):",
          f"    return {ground[0] + '[0]' if ground else '0.0'}",
@@ -1005,6 +1359,19 @@ def _generate_source(refs):
          "    energy[0] = bending_force_add(x, edge_len, B, F)"]
     for k, (alias, p) in enumerate(forces):
         L.append(f"    energy[{k + 1}] = {alias}(x, v, t, {p}, edge_len, mass, F)")
+    # the stiffness hooks write their low-rank parts into consecutive blocks of U and C
+    # (C block diagonal); an effect without a hook costs nothing here
+    L += ["", "", "@numba.njit(cache=True)",
+          f"def _stiffness(x, v, t, edge_len, mass, K, U, C{fargs}):",
+          "    r = 0"]
+    for alias, p in stiff:
+        L += [f"    k = {alias}(x, v, t, {p}, edge_len, mass, K, U[r:r + STIFFNESS_RANK],",
+              "                C[r:r + STIFFNESS_RANK, r:r + STIFFNESS_RANK])",
+              "    if k < 0 or k > STIFFNESS_RANK:",
+              "        raise ValueError('a stiffness hook returned a rank outside "
+              "[0, STIFFNESS_RANK]')",
+              "    r += k"]
+    L.append("    return r")
     L += ["", "", "@numba.njit(cache=True)",
           f"def _damp(x, v, t, edge_len, mass, h{pargs}):"]
     for alias, p in damps:
@@ -1015,6 +1382,14 @@ def _generate_source(refs):
 
 
 _MODULES: dict = {}
+
+
+def _stiffness_ref(effect):
+    """(module, name) of a force effect's optional ``stiffness`` hook, or None."""
+    hook = getattr(effect, "stiffness", None)
+    if hook is None:
+        return None
+    return _kernel_ref(SimpleNamespace(name=effect.name, kernel=hook))
 
 
 def compile_implicit(effects=()):
@@ -1034,6 +1409,7 @@ def compile_implicit(effects=()):
     refs = []
     grounds = 0
     for e in effects:
+        hook = _stiffness_ref(e) if e.kind == "force" else None
         if e.kind not in KINDS:
             raise ValueError(f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}")
         ref = _kernel_ref(e)
@@ -1050,12 +1426,13 @@ def compile_implicit(effects=()):
                     f"effect {e.name!r}: the implicit stepper handles one ground; got "
                     f"{grounds} ground effects"
                 )
-        refs.append((e.kind, *ref))
+        refs.append((e.kind, *ref, hook))
     refs = tuple(refs)
     if refs in _MODULES:
         return _MODULES[refs]
     st = os.stat(__file__)
-    fp = _fingerprint(refs) + f"{__file__}:{st.st_mtime_ns}:{st.st_size}"
+    files = [r[:3] for r in refs] + [("force", *r[3]) for r in refs if r[3] is not None]
+    fp = _fingerprint(files) + f"{__file__}:{st.st_mtime_ns}:{st.st_size}"
     module = load_generated("_dynamics_implicit", _generate_source(refs), fp)
     _MODULES[refs] = module
     return module
@@ -1065,7 +1442,8 @@ def compile_implicit(effects=()):
 
 
 def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None,
-                      t0=0.0, jacobian_age=JACOBIAN_AGE, tol_x=NEWTON_TOL_X, tol_c=NEWTON_TOL_C):
+                      t0=0.0, jacobian_age=JACOBIAN_AGE, tol_x=NEWTON_TOL_X, tol_c=NEWTON_TOL_C,
+                      stiffness=True, refresh_rate=REFRESH_RATE, refresh_move=REFRESH_MOVE):
     """Integrate an inextensible planar rod with the constrained implicit midpoint rule.
 
     Same interface and result as :func:`dynamics.simulate`, without the explicit
@@ -1091,6 +1469,11 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     tol_x, tol_c : float, optional
         Newton tolerances: momentum residual (relative to the shortest edge) and relative
         edge-length error.
+    stiffness : bool, optional
+        Put the stiffness of the force effects that supply a ``stiffness`` hook
+        (:mod:`dynamics.effects`; the drop does) into the Newton matrix.  False leaves it
+        out (simplified Newton, more iterations); the converged steps are the same to the
+        Newton tolerance either way.
 
     Returns
     -------
@@ -1100,7 +1483,10 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
         ``velocities`` and ``energies["kinetic"]`` are those of the scheme's v1 (the
         quantity it conserves), which may carry the sign-flipping mode ``(v, -v)`` of the
         midpoint rule that does not move the rod; ``rest`` is judged on the displacement
-        rate instead.
+        rate instead.  Extra attributes: ``jacobians`` (factorisations of the Newton
+        matrix), ``pivoted_factorisations``, ``contact_rounds`` and
+        ``stiffness_dropped`` (factorisations whose low-rank stiffness part was left out,
+        its Woodbury capacitance matrix being singular).
     """
     dt, t_end, effects, ev = _validate_run(rod, effects, events, dt, t_end)
     if int(jacobian_age) < 1:
@@ -1136,7 +1522,17 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
         rest_arr[1] = rest.duration
     h_min = float(edge_len.min())
     opts = np.array([tol_x * h_min, tol_c, NEWTON_MAX_ITER, float(int(jacobian_age)),
-                     CONTACT_PULL_TOL * h_min])
+                     CONTACT_PULL_TOL * h_min, 1.0 if stiffness else 0.0, refresh_rate,
+                     refresh_move])
+    # workspace of the force stiffness (K band, U, C, G, H, S, pivots,
+    # [rank, dropped, start, used], scratch); empty when no effect has a stiffness hook
+    hooks = sum(1 for e in effects
+                if e.kind == "force" and getattr(e, "stiffness", None) is not None)
+    R = STIFFNESS_RANK * hooks
+    nk = n if hooks else 0
+    lr = (np.zeros((nk, 2, 2 * STIFFNESS_BAND + 1, 2)), np.zeros((R, nk, 2)),
+          np.zeros((R, R)), np.zeros((N, R)), np.zeros((N, R)), np.zeros((R, R)),
+          np.zeros(R, dtype=np.int64), np.zeros(4, dtype=np.int64), np.zeros(R))
     ground = [e for e in effects if e.kind == "constraint"]
     if ground:
         # nodes on (or below) the ground at the start are held; the first step's
@@ -1157,10 +1553,11 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     tc = time.perf_counter()
     xs, vs, accs, hs = x.copy(), v.copy(), ws[5].copy(), ws[6].copy()
     mod.run(x, v, t0, dt, 1, edge_len, mass, winv, rod.B, ws, mu, ab, piv, rhs, energy,
-            diag, np.zeros(3), opts, *params)  # compile / load; state restored below
+            diag, np.zeros(3), opts, lr, *params)  # compile / load; state restored below
     x[:, :], v[:, :], ws[5][:, :], ws[6][:, :] = xs, vs, accs, hs
     mu[:] = 0.0
     diag[:] = 0.0
+    lr[7][:] = 0
     compile_time += time.perf_counter() - tc
 
     n_total, stops, fset = _schedule(frames, t_end, dt, ev)
@@ -1185,7 +1582,7 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
         if stop > step:
             status, done = mod.run(x, v, t0 + step * dt, dt, stop - step, edge_len, mass,
                                    winv, rod.B, ws, mu, ab, piv, rhs, energy, diag, rest_arr,
-                                   opts, *params)
+                                   opts, lr, *params)
             step += done
             if status != 0:
                 break
@@ -1224,4 +1621,6 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     res.jacobians = int(diag[10])
     res.pivoted_factorisations = int(diag[1])
     res.contact_rounds = int(diag[4])
+    res.stiffness_lowrank = int(lr[7][3])
+    res.stiffness_dropped = int(lr[7][1])
     return res

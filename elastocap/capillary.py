@@ -6,7 +6,10 @@ A force effect of the `dynamics` effect protocol (see :mod:`dynamics.effects`) w
 ``dynamics.Event(time, "capillary", "s2", value)`` moves a contact line (the paper's
 secondary drop, Fig 5). The kernel is the exact gradient of gamma lambda from
 :func:`elastocap.drop.capillary_energy_and_gradient`, so with no damping and no contact the
-total energy is conserved by the symplectic stepper (tested).
+total energy is conserved by the symplectic stepper (tested). Its stiffness, the Hessian of
+gamma lambda, is the optional ``stiffness`` hook of the protocol
+(:func:`elastocap.capillary_hessian.capillary_stiffness`), which the implicit stepper puts
+into its Newton matrix.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from elastocap.capillary_hessian import capillary_stiffness
 from elastocap.drop import capillary_energy_and_gradient
 
 __all__ = ["Capillary", "capillary_kernel"]
@@ -55,6 +59,7 @@ class Capillary:
     kind = "force"
     param_names = ("area", "s1", "s2", "gamma")
     kernel = capillary_kernel
+    stiffness = capillary_stiffness
 
     def __init__(self, area, s1, s2, gamma, name="capillary"):
         if not (area > 0 and gamma > 0 and 0.0 <= s1 < s2):
