@@ -196,3 +196,32 @@ def test_bad_range_is_refused_by_name(over, rng, key):
 def test_discrete_strip_for_keeps_the_scene_resolution():
     sc = load_scene("fig3-strip", {"numerics.n_edges": 40})
     assert discrete_strip_for(sc).n == 40
+
+
+def test_lowest_barriers_is_the_minimax_over_saddle_paths():
+    from elastocap.strip.barrier_graph import lowest_barriers
+
+    # minima: 0 open (E 0), 1 open (E 1), 2 encapsulated (E -5), 3 open, isolated (E 2);
+    # saddles: 0-1 at 3, 1-2 at 2, 0-2 at 10, one with a failed descent (-1) at 0.5
+    got = lowest_barriers([0.0, 1.0, -5.0, 2.0], [False, False, True, False],
+                          [(3.0, 0, 1), (2.0, 1, 2), (10.0, 0, 2), (0.5, 3, -1)])
+    by = {g["minimum"]: g for g in got}
+    assert by[0]["barrier"] == 3.0 and by[0]["via"] == 0  # 0 -> 1 -> 2 beats 0 -> 2
+    assert by[1]["barrier"] == 1.0 and by[1]["via"] == 1
+    assert by[3]["barrier"] == float("inf") and by[3]["via"] == -1
+    assert 2 not in by
+
+
+def test_barrier_graph_agrees_with_the_string_method(x3):
+    from elastocap.strip.barrier_graph import barrier_graph
+
+    g = barrier_graph(x3, 1.1)
+    # at x = 3, Delta = 1.1, n = 60 the traced branches cross one open minimum, one
+    # encapsulated minimum and one saddle joining them
+    assert [m["encapsulated"] for m in g.minima] == [True, False]
+    assert len(g.saddles) == 1 and sorted(g.saddles[0]["joins"]) == [0, 1]
+    (b,) = g.barriers
+    S = DiscreteStrip(60, L, 3.0, 1.1, A, GAMMA)
+    ref = barrier(S)
+    # the string method's barrier (0.9245913, an independent path search) to round-off
+    assert abs(b["barrier"] - ref.barrier) < 1e-10
