@@ -7,7 +7,7 @@ and the drop's footprint resting on the ground are all contact sets of the same 
 no topology is excluded (the spectral solver of :mod:`elastocap.strip.branches` holds one).
 
 Search
-    At ``SEARCH_GRID`` values of Delta spread over the range, two seeds: a quasi-static
+    At each of ``SEED_DELTAS`` inside the range, two seeds: a quasi-static
     deposition (descent from the flat strip, :func:`~elastocap.strip.mep.open_state`) and
     the strip folded over the drop (:func:`~elastocap.strip.mep.wrapped_state`). A seed that
     lies on a branch already traced is skipped (Newton at the seed's Delta from the nearest
@@ -55,8 +55,11 @@ from elastocap.strip.mep import is_encapsulated, open_state, wrapped_state
 __all__ = ["NOT_HANDLED", "ContactBranchSet", "point_measures", "strip_and_interface",
            "trace_contact_branches"]
 
-#: Seeds per kind: at this many Deltas spread over the range (interior points).
-SEARCH_GRID = 4
+#: Seeds of each kind at these Deltas (length) inside the range (its midpoint if none):
+#: fixed, so that the branches found do not depend on where the range starts. With 4
+#: seeds spread over the range, x = 3, n = 143 found an open branch ending at a smooth fold
+#: at Delta = 1.4451 when the range started at 0.3 and missed it from 0.5.
+SEED_DELTAS = tuple(round(0.4 + 0.2 * k, 10) for k in range(9))
 #: The error estimate's resolution: this many times the edges (rounded).
 REFINE = 1.5
 #: Segments per traced direction. At x = 2, n = 143 the open branch turns into the
@@ -74,7 +77,7 @@ _SAME = 1e-7
 NOT_HANDLED = (
     "rod-rod contact (the strip may cross itself: such states are marked inadmissible, "
     "not excluded); branches not reached from the seeds (deposition and fold at "
-    f"{SEARCH_GRID} Deltas); only drop.wetted_length (other parameters use the "
+    f"Delta = {', '.join(f'{d:g}' for d in SEED_DELTAS)}); only drop.wetted_length (other parameters use the "
     "single-topology spectral solver, elastocap.strip.branches)"
 )
 
@@ -421,8 +424,9 @@ def _window(points, folds=(), kind_changes=()) -> dict:
         if k["index"] == 0 and k["admissible"]:
             opens.append((k["value"], "kind_change"))
             encs.append((k["value"], "kind_change"))
-    top = max(opens) if opens else None
-    bot = min(encs) if encs else None
+    # at a tie a located special point names the end (an event is also a traced point)
+    top = max(opens, key=lambda t: (t[0], t[1] != "range")) if opens else None
+    bot = min(encs, key=lambda t: (t[0], t[1] == "range")) if encs else None
     return {
         "open_max": {"value": top[0] if top else None, "how": top[1] if top else None,
                      "error_estimate": math.nan},
@@ -434,7 +438,7 @@ def _window(points, folds=(), kind_changes=()) -> dict:
 
 
 def _trace_all(strip: DiscreteStrip, lo: float, hi: float, progress=None):
-    grid = np.linspace(lo, hi, SEARCH_GRID + 2)[1:-1]
+    grid = [d for d in SEED_DELTAS if lo < d < hi] or [0.5 * (lo + hi)]
     branches, labels = [], []
     for kind, seed in (("deposition", open_state), ("fold", wrapped_state)):
         for d in grid:
@@ -534,7 +538,7 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         "n_edges_refined": n_fine,
         "solver": "discrete strip (elastocap.strip.discrete), pseudo-arclength at fixed "
                   "contact sets with located lift-off/touch-down events",
-        "search_grid": SEARCH_GRID,
+        "seed_deltas": [d for d in SEED_DELTAS if lo < d < hi] or [0.5 * (lo + hi)],
         "continuation": {k: v for k, v in _DEFAULTS.items()},
         "contact_event_tol": "reaction or gap at a located event below 1e-13 (force, length)",
         "version": __version__,
