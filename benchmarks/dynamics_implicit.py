@@ -13,14 +13,26 @@ Prints, in one run on the same machine:
    implicit stepper at k = 16 and 64;
 3. an undamped released wavy rod (40 edges, t = 200): relative energy error and drift;
 4. wall time against N of a short supp-fig5 impact (RATTLE's N**3 against N);
-5. Delta* from the implicit stepper at a fixed dt = 0.0152 at 100, 200, 400 edges.
+5. Delta* from the implicit stepper at a fixed dt = 0.0152 at 100, 200, 400 edges;
+6. whole impacts through ``elastocap.impact.run_impact`` (the CLI's path): fig3-strip
+   damped (``effects.damping = 0.1``, as Fig 3d) and undamped (the scene as shipped),
+   supp-fig5 at Delta = 2.5 and 4; RATTLE, and the implicit stepper at its automatic dt
+   as it was (no force stiffness in the Newton matrix, a refactorisation at every contact
+   change), with the drop's stiffness, and with both the stiffness and the low-rank
+   contact updates (the default): wall time (median of interleaved repeats), steps, Newton
+   iterations and factorisations per step, rejected steps, outcome, final measure M, end
+   position x(L), energy rise;
+7. fig3-strip at larger implicit steps (4, 8, 16, 32 x the explicit bound, the default
+   stepper), against RATTLE and the implicit stepper at 2x: is a larger automatic dt
+   usable with a ground (``elastocap.impact.IMPLICIT_GROUND_BOUND_MULTIPLE``)?
 
-Usage: ``python benchmarks/dynamics_implicit.py [--fast]``.
+Usage: ``python benchmarks/dynamics_implicit.py [--fast] [--only 6,7]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
 import sys
@@ -34,6 +46,7 @@ from dynamics.stepper import RestCriterion
 from elastocap import impact as _impact
 from elastocap.capillary import Capillary
 from elastocap.impact import turning_measure
+from elastocap.scene import load_scene
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests", "dynamics"))
 from dyn_helpers import rod_from_angles  # noqa: E402
@@ -192,22 +205,120 @@ def bench_scaling(t_end=10.0):
         print(line)
 
 
-def main(fast=False):
+#: The implicit stepper's variants of section 6: (label, keyword arguments).
+IMPLICIT_VARIANTS = (
+    ("implicit, as before", dict(stiffness=False, contact_updates=False)),
+    ("implicit +stiffness", dict(stiffness=True, contact_updates=False)),
+    ("implicit +contact upd", dict(stiffness=True, contact_updates=True)),
+)
+
+
+def impact_run(scene, overrides, integrator, kwargs=None, dt_multiple=None):
+    """One ``run_impact`` with the implicit stepper's keyword arguments ``kwargs`` (the
+    module attribute is patched for the call) and optionally dt = multiple x dt_max."""
+    ov = dict(overrides, **{"numerics.integrator": integrator})
+    if dt_multiple is not None:
+        ov["numerics.dt"] = dt_multiple * _impact.impact_settings(load_scene(scene, ov))["dt_max"]
+    saved = _impact.simulate_implicit
+    if kwargs is not None:
+        _impact.simulate_implicit = functools.partial(simulate_implicit, **kwargs)
+    try:
+        return _impact.run_impact(load_scene(scene, ov))
+    finally:
+        _impact.simulate_implicit = saved
+
+
+def impact_row(label, res, walls, ref=None):
+    s = res.simulation
+    fac = getattr(s, "jacobians", None)
+    fac = "" if fac is None else f"{fac / max(s.steps, 1):.2f}"
+    dM = "" if ref is None else f"{res.final_measure - ref.final_measure:+.1e}"
+    print(f"{label:23s} {res.settings['dt']:8.2e} {s.steps:7d} {np.median(walls):7.2f} "
+          f"{s.shake_iterations_mean:5.2f} {fac:>5s} {s.rejected_steps:5d} "
+          f"{res.outcome:12s} {res.final_measure:9.5f} {dM:>8s} {res.end_position:9.4f} "
+          f"{res.energy_rise:8.1e} {res.t_end:6.1f} {res.status}")
+
+
+IMPACT_HDR = (f"{'stepper':23s} {'dt':>8s} {'steps':>7s} {'wall s':>7s} {'it':>5s} "
+              f"{'fac':>5s} {'rej':>5s} {'outcome':12s} {'M final':>9s} {'dM':>8s} "
+              f"{'x(L)':>9s} {'rise':>8s} {'t_end':>6s} status")
+
+#: The impacts of section 6: (label, scene, overrides).
+IMPACTS = (
+    ("fig3-strip damped 0.1", "fig3-strip", {"effects.damping": 0.1}),
+    ("fig3-strip undamped", "fig3-strip", {}),
+    ("supp-fig5 Delta 2.5", "supp-fig5", {"drop.wetted_length": 2.5}),
+    ("supp-fig5 Delta 4", "supp-fig5", {"drop.wetted_length": 4.0}),
+)
+
+
+def bench_whole_impacts(repeat, cases=IMPACTS):
+    print(f"\n== 6. whole impacts (run_impact), automatic dt, wall: median of {repeat} "
+          "interleaved; dM against RATTLE; it = Newton iterations a step, fac = "
+          "factorisations a step, rej = rejected steps")
+    for label, scene, ov in cases:
+        print(f"\n-- {label}")
+        print(IMPACT_HDR)
+        variants = [("RATTLE", "rattle", None)] + [
+            (lab, "implicit", kw) for lab, kw in IMPLICIT_VARIANTS]
+        res, walls = {}, {v[0]: [] for v in variants}
+        for _ in range(repeat):
+            for lab, integ, kw in variants:
+                res[lab] = impact_run(scene, ov, integ, kw)
+                walls[lab].append(res[lab].simulation.wall_time)
+        for lab, _, _ in variants:
+            impact_row(lab, res[lab], walls[lab], None if lab == "RATTLE" else res["RATTLE"])
+
+
+def bench_ground_dt(repeat, multiples=(2, 4, 8, 16, 32)):
+    print("\n== 7. fig3-strip at larger implicit steps (numerics.dt = k x dt_max, the "
+          f"default implicit stepper; wall: median of {repeat}); the automatic dt is now "
+          f"{_impact.IMPLICIT_GROUND_BOUND_MULTIPLE:g} x dt_max")
+    for label, scene, ov in IMPACTS[:2]:
+        print(f"\n-- {label}")
+        print(IMPACT_HDR)
+        variants = [("RATTLE", "rattle", None)] + [(f"implicit {k:g}x", "implicit", k)
+                                                   for k in multiples]
+        res, walls = {}, {v[0]: [] for v in variants}
+        for _ in range(repeat):
+            for lab, integ, k in variants:
+                res[lab] = impact_run(scene, ov, integ, {}, k)
+                walls[lab].append(res[lab].simulation.wall_time)
+        for lab, _, _ in variants:
+            impact_row(lab, res[lab], walls[lab], None if lab == "RATTLE" else res["RATTLE"])
+
+
+def main(fast=False, only=None):
     print(f"RATTLE impact step: {RATTLE_FRACTION} x bound; explicit bound at 100 edges "
           f"{stable_dt(np.full(N_EDGES, L / N_EDGES), 1, 1):.3e}")
+    only = set(only or range(1, 8))
     # compile / load every stepper once
     run(2.5, "rattle", RATTLE_FRACTION, t_max=0.1)
     run(2.5, "implicit", 16, t_max=0.1)
     ks = (4, 16, 64) if fast else (1, 4, 16, 64, 128)
-    bench_impacts((2.5, 4.0) if fast else (2.5, 3.50, 3.55, 4.0), ks, 1 if fast else 3)
-    bench_threshold((16, 64), 4 if fast else 10)
-    bench_energy((4, 16, 64), 60.0 if fast else 200.0)
-    if not fast:
+    if 1 in only:
+        bench_impacts((2.5, 4.0) if fast else (2.5, 3.50, 3.55, 4.0), ks, 1 if fast else 3)
+    if 2 in only:
+        bench_threshold((16, 64), 4 if fast else 10)
+    if 3 in only:
+        bench_energy((4, 16, 64), 60.0 if fast else 200.0)
+    if not fast and 4 in only:
         bench_scaling()
+    if not fast and 5 in only:
         bench_threshold_refined(10)
+    if 6 in only or 7 in only:
+        for _, scene, ov in IMPACTS:  # compile / load
+            impact_run(scene, {**ov, "numerics.t_max": 0.1}, "rattle")
+            impact_run(scene, {**ov, "numerics.t_max": 0.1}, "implicit")
+    if 6 in only:
+        bench_whole_impacts(1 if fast else 3, IMPACTS[::2] if fast else IMPACTS)
+    if 7 in only:
+        bench_ground_dt(1 if fast else 3, (4, 16) if fast else (2, 4, 8, 16, 32))
 
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fast", action="store_true")
-    main(fast=ap.parse_args().fast)
+    ap.add_argument("--only", default="", help="comma-separated section numbers, e.g. 6,7")
+    a = ap.parse_args()
+    main(fast=a.fast, only=[int(v) for v in a.only.split(",") if v] or None)

@@ -67,11 +67,14 @@ that row's residual is its contact impulse (:func:`ground_rows_residual`).  The 
 updated on Newton iterates near convergence and again after convergence
 (:func:`ground_update`): a free node ending below the ground is held, a held node the
 ground pulls is released (lift-off, no adhesion); a node released and caught again in the
-same step stays held (no cycling).  A held node ends the step at ``z0`` with zero
-vertical velocity: the landing is perfectly inelastic (the midpoint rule alone would give
-``v1 = -v0``, a bounce), a resting rod has no jitter, and the contact forces do no
-positive work (``D_z <= 0`` where they push).  Other constraint effects
-(:class:`~dynamics.Clamp`) are refused by name.
+same step stays held (no cycling).  A change of the held set switches rows of the Newton
+matrix; the factored matrix takes them as a low-rank update (one Woodbury column per node
+that differs from the factorisation's set, :func:`contact_lowrank`) instead of being
+refactored: a third fewer factorisations on fig3-strip and on a dropped rod (measured).
+A held node ends the step at ``z0`` with zero vertical velocity: the landing is perfectly
+inelastic (the midpoint rule alone would give ``v1 = -v0``, a bounce), a resting rod has
+no jitter, and the contact forces do no positive work (``D_z <= 0`` where they push).
+Other constraint effects (:class:`~dynamics.Clamp`) are refused by name.
 
 References: Hairer, Lubich & Wanner, "Geometric Numerical Integration" (2006), sec. VII.1
 (constrained mechanical systems), sec. V.4 and VI.3 (midpoint rule); Newmark (1959);
@@ -119,6 +122,8 @@ __all__ = [
     "ground_update",
     "stiffness_band_add",
     "lowrank_rate",
+    "contact_rows_save",
+    "contact_lowrank",
     "lowrank_setup",
     "lowrank_correct",
     "KL",
@@ -218,6 +223,12 @@ SMALL_PIVOT = 1e-12
 #: fewer iterations a step; fig3-strip (0.11) broke even; 0.85 and above (supp-fig5 at 64x
 #: the bound) halved the iterations.
 LOWRANK_MIN_RATE = 0.1
+
+#: Most nodes whose held status may differ from that of the factored Newton matrix: their
+#: rows are switched by a low-rank update (:func:`contact_lowrank`, one column each); more,
+#: and the matrix is refactored.  fig3-strip changes 1-3 nodes a step when the strip lands
+#: or lifts (measured).
+CONTACT_RANK = 8
 
 #: (module, kernel) of the one constraint effect the implicit stepper handles.
 _GROUND_REF = ("dynamics.effects", "ground_kernel")
@@ -361,30 +372,31 @@ def band_solve(ab, piv, kl, ku, b):
 
 
 @numba.njit(cache=True)
-def band_forward_multi(ab, piv, kl, Y, m, start):
-    """:func:`band_forward` on the columns ``Y[:, :m]`` (shape (N, >= m)), all zero in
-    rows ``< start`` (the sweep starts there: what a zero head leaves unchanged)."""
+def band_forward_multi(ab, piv, kl, Y, j0, m, start):
+    """:func:`band_forward` on the columns ``Y[:, j0:j0 + m]`` (``Y`` shape (N, >= j0 + m)),
+    all zero in rows ``< start`` (the sweep starts there: what a zero head leaves
+    unchanged)."""
     N = ab.shape[0]
     pivoted = piv[0] >= 0
     for k in range(start, N):
         if pivoted:
             p = piv[k]
             if p != k:
-                for j in range(m):
+                for j in range(j0, j0 + m):
                     tmp = Y[k, j]
                     Y[k, j] = Y[p, j]
                     Y[p, j] = tmp
         for r in range(k + 1, min(k + kl, N - 1) + 1):
             f = ab[r, k - r + kl]
             if f != 0.0:
-                for j in range(m):
+                for j in range(j0, j0 + m):
                     Y[r, j] -= f * Y[k, j]
     return Y
 
 
 @numba.njit(cache=True)
-def band_backward_transpose_multi(ab, piv, kl, ku, Y, m, start):
-    """Solve ``U^T H = Y[:, :m]`` in place (``H = (Y^T U^{-1})^T``, the rows of
+def band_backward_transpose_multi(ab, piv, kl, ku, Y, j0, m, start):
+    """Solve ``U^T H = Y[:, j0:j0 + m]`` in place (``H = (Y^T U^{-1})^T``, the rows of
     ``Y^T U^{-1}`` as columns), ``Y`` zero in rows ``< start``, where ``H`` is zero too
     (``U^T`` is lower triangular)."""
     N = ab.shape[0]
@@ -393,10 +405,10 @@ def band_backward_transpose_multi(ab, piv, kl, ku, Y, m, start):
         for c in range(max(start, k - w), k):
             f = ab[c, k - c + kl]
             if f != 0.0:
-                for j in range(m):
+                for j in range(j0, j0 + m):
                     Y[k, j] -= f * Y[c, j]
         inv = 1.0 / ab[k, kl]
-        for j in range(m):
+        for j in range(j0, j0 + m):
             Y[k, j] *= inv
     return Y
 
@@ -937,7 +949,9 @@ def lowrank_setup(ab, piv, U, C, k, q, winv, held, G, H, S, spiv):
         return -1
     # row interchanges can move an entry up by at most kl rows
     start = max(0, _node_index(first) - KL)
-    for j in range(start, N):
+    # whole columns: rows above start may hold contact columns of an earlier matrix, and
+    # contact columns added later (contact_lowrank) can start above this start
+    for j in range(N):
         for r in range(k):
             G[j, r] = 0.0
             H[j, r] = 0.0
@@ -951,8 +965,18 @@ def lowrank_setup(ab, piv, U, C, k, q, winv, held, G, H, S, spiv):
                 H[b + a, r] = acc
                 if not (a == 1 and held[i] != 0.0):
                     G[b + a, r] = q * winv[i, a] * U[r, i, a]
-    band_forward_multi(ab, piv, KL, G, k, start)
-    band_backward_transpose_multi(ab, piv, KL, KL, H, k, start)
+    band_forward_multi(ab, piv, KL, G, 0, k, start)
+    band_backward_transpose_multi(ab, piv, KL, KL, H, 0, k, start)
+    if _capacitance(G, H, S, spiv, k, start) != 0:
+        return -1
+    return start
+
+
+@numba.njit(cache=True)
+def _capacitance(G, H, S, spiv, k, start):
+    """``S = I + H^T G`` over the first k columns (rows >= start), LU-factored in place;
+    -1 if singular (:func:`_small_lu`)."""
+    N = G.shape[0]
     for r in range(k):
         for c in range(k):
             S[r, c] = 1.0 if r == c else 0.0
@@ -962,9 +986,99 @@ def lowrank_setup(ab, piv, U, C, k, q, winv, held, G, H, S, spiv):
             if hr != 0.0:
                 for c in range(k):
                     S[r, c] += hr * G[j, c]
-    if _small_lu(S, spiv, k) != 0:
+    return _small_lu(S, spiv, k)
+
+
+@numba.njit(cache=True)
+def contact_rows_save(ab, held, mom, held_f):
+    """Save the vertical momentum rows of all nodes (``mom`` (n, 3 KL + 1), band layout)
+    and the held set (``held_f``) of the matrix about to be factored, before
+    :func:`ground_rows_matrix` replaces the held rows: what :func:`contact_lowrank` needs
+    to switch rows later without refactoring."""
+    for i in range(held.shape[0]):
+        r = _node_index(i) + 1
+        for c in range(ab.shape[1]):
+            mom[i, c] = ab[r, c]
+        held_f[i] = held[i]
+
+
+@numba.njit(cache=True)
+def contact_lowrank(ab, piv, held, held_f, mom, U, C, k, q, winv, G, H, S, spiv, kinfo):
+    """Rank-c update of the factored Newton matrix for a changed set of held nodes.
+
+    Each node ``i`` whose held status differs from the factorisation's (``held_f``)
+    changes one row ``r`` of the Newton matrix ``M`` (its vertical momentum row, or the
+    contact row ``e_r``): ``M_new = M + sum_i e_r delta_i^T`` with
+    ``delta_i = s_i (e_r - m_r - l_i Vt)``, ``s_i = +1`` for a node caught, -1 for one
+    released, ``m_r`` the saved band row (:func:`contact_rows_save`) and ``l_i Vt`` the
+    row of the stiffness's low-rank part (``k`` columns already in ``G, H``).  The update
+    becomes columns ``k .. k + c`` of ``G = L_f^{-1} P E`` and ``H = (Delta U_f^{-1})^T``
+    (partial sweeps from the first changed row) and the capacitance matrix is refactored.
+
+    Returns
+    -------
+    int
+        ``c`` (0: the held set is the factorisation's again), or -1 when there is no room
+        for ``c`` more columns (``G.shape[1] - k``) or the capacitance matrix is singular:
+        the caller refactors.  ``kinfo[4]`` holds ``c``, ``kinfo[2]`` the first row of all
+        the columns in use (restored to the stiffness's, ``kinfo[6]``, when ``c`` is 0).
+    """
+    n = held.shape[0]
+    N = ab.shape[0]
+    room = G.shape[1] - k
+    # first node of the stiffness vectors: delta_i reaches down to it through l_i Vt
+    first = n
+    for r_ in range(k):
+        for m in range(n):
+            if U[r_, m, 0] != 0.0 or U[r_, m, 1] != 0.0:
+                first = min(first, m)
+                break
+    c = 0
+    rmin = N
+    for i in range(n):
+        if (held[i] != 0.0) == (held_f[i] != 0.0):
+            continue
+        if c >= room:
+            kinfo[4] = 0
+            return -1
+        j = k + c
+        r = _node_index(i) + 1
+        sg = 1.0 if held[i] != 0.0 else -1.0
+        for jj in range(N):
+            G[jj, j] = 0.0
+            H[jj, j] = 0.0
+        G[r, j] = 1.0
+        H[r, j] += sg
+        for cc in range(max(0, r - KL), min(N, r + KL + 1)):
+            H[cc, j] -= sg * mom[i, cc - r + KL]
+        rmin = min(rmin, r - KL)
+        if k > 0 and winv[i, 1] != 0.0:
+            # l_i Vt = sum_s a_s U[s], a_s = q w_i sum_r U[r, i, z] C[r, s]
+            for s_ in range(k):
+                a = 0.0
+                for r_ in range(k):
+                    a += U[r_, i, 1] * C[r_, s_]
+                a *= q * winv[i, 1]
+                if a != 0.0:
+                    for m in range(first, n):
+                        b = _node_index(m)
+                        H[b, j] -= sg * a * U[s_, m, 0]
+                        H[b + 1, j] -= sg * a * U[s_, m, 1]
+            rmin = min(rmin, _node_index(first))
+        c += 1
+    kinfo[4] = c
+    start = kinfo[6] if k > 0 else N
+    if c > 0:
+        # row interchanges can move an entry up by at most KL rows
+        cstart = max(0, rmin - KL)
+        band_forward_multi(ab, piv, KL, G, k, c, cstart)
+        band_backward_transpose_multi(ab, piv, KL, KL, H, k, c, cstart)
+        start = min(start, cstart)
+    kinfo[2] = start
+    if k + c > 0 and _capacitance(G, H, S, spiv, k + c, start) != 0:
+        kinfo[4] = 0
         return -1
-    return start
+    return c
 
 
 @numba.njit(cache=True)
@@ -1010,13 +1124,14 @@ def lowrank_correct(t, k, start, G, H, S, spiv, tv):
 #: functions) for the same reason as :mod:`dynamics.stepper`: numba caches it on disk.
 _TEMPLATE = '''
 @numba.njit(cache=True)
-def _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, K, stiff):
+def _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, lr, stiff):
     kkt_assemble(x0, d, xm, mu, winv, edge_len, ab)
     bending_hessian_add(xm, edge_len, B, 0.25 * dt * dt, winv, ab)
     if HAS_STIFFNESS:
         if stiff:
-            stiffness_band_add(K, 0.25 * dt * dt, winv, ab)
+            stiffness_band_add(lr[0], 0.25 * dt * dt, winv, ab)
     if HAS_GROUND:
+        contact_rows_save(ab, held, lr[10], lr[9])
         ground_rows_matrix(held, ab)
 
 
@@ -1025,20 +1140,22 @@ def _jacobian(x0, d, xm, vm, t, mu, winv, edge_len, mass, B, dt, ab, piv, held, 
               stiff FARGS):
     K = lr[0]
     k = 0
+    lr[7][0] = 0
+    lr[7][4] = 0
+    lr[7][2] = ab.shape[0]
     if HAS_STIFFNESS:
-        lr[7][0] = 0
         if stiff:
             K[:, :, :, :] = 0.0
             lr[1][:, :, :] = 0.0
             lr[2][:, :] = 0.0
             k = _stiffness(xm, vm, t, edge_len, mass, K, lr[1], lr[2] FARGS)
-    _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, K, stiff)
+    _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, lr, stiff)
     # no pivoting unless a pivot is tiny (see band_lu_nopivot)
     res = 0
     if band_lu_nopivot(ab, KL, KL, 1e-10) == 0:
         piv[0] = -1
     else:
-        _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, K, stiff)
+        _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, lr, stiff)
         if band_lu(ab, piv, KL, KL) != 0:
             return -1
         res = 1
@@ -1049,6 +1166,7 @@ def _jacobian(x0, d, xm, vm, t, mu, winv, edge_len, mass, B, dt, ab, piv, held, 
             if start >= 0:
                 lr[7][0] = k
                 lr[7][2] = start
+                lr[7][6] = start
                 lr[7][3] += 1
             else:
                 lr[7][1] += 1
@@ -1056,10 +1174,17 @@ def _jacobian(x0, d, xm, vm, t, mu, winv, edge_len, mass, B, dt, ab, piv, held, 
 
 
 @numba.njit(cache=True)
+def _contact_update(ab, piv, held, lr, winv, dt):
+    lr[7][7] += 1
+    return contact_lowrank(ab, piv, held, lr[9], lr[10], lr[1], lr[2], lr[7][0],
+                           0.25 * dt * dt, winv, lr[3], lr[4], lr[5], lr[6], lr[7])
+
+
+@numba.njit(cache=True)
 def _solve(ab, piv, rhs, lr):
     band_forward(ab, piv, KL, rhs)
-    if HAS_STIFFNESS:
-        k = lr[7][0]
+    if HAS_STIFFNESS or HAS_GROUND:
+        k = lr[7][0] + lr[7][4]
         if k > 0:
             lowrank_correct(rhs, k, lr[7][2], lr[3], lr[4], lr[5], lr[6], lr[8])
     band_backward(ab, piv, KL, KL, rhs)
@@ -1089,6 +1214,8 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
     stiff = opts[5] != 0.0
     refresh_rate = opts[6]
     refresh_move = opts[7]
+    # contact changes by a low-rank update of the factored matrix (else: refactor)
+    cupd = opts[8] != 0.0
     z0 = _z0(t PARGS)
     _damp(x, v, t, edge_len, mass, half PARGS)
     for i in range(n):
@@ -1131,13 +1258,16 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
                 # active-set update on the current iterate once it is near convergence
                 # (edge lengths within FINAL_C; earlier iterates flip nodes spuriously): a
                 # semi-smooth Newton step.  Each node changes at most 3 times a step
-                # (free -> held -> released -> held for good), so this cannot cycle
-                # (the held rows changed: refactor; measured, a stale matrix lets the
+                # (free -> held -> released -> held for good), so this cannot cycle.
+                # The held rows changed: the factored matrix gets them by a low-rank
+                # update, or is refactored (measured: a matrix with stale rows lets the
                 # iterate diverge)
                 if (cmax <= FINAL_C
                         and ground_update(x0, d, held, released, wnu, z0, tol_pull) > 0):
                     diag[4] += 1
-                    diag[8] = max_age
+                    if (not cupd or diag[8] >= max_age
+                            or _contact_update(ab, piv, held, lr, winv, dt) < 0):
+                        diag[8] = max_age
                     continue
             if not (rmax < np.inf and cmax < np.inf):
                 break
@@ -1191,7 +1321,10 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
             break
         rounds += 1
         diag[4] += 1
-        diag[8] = max_age  # the held rows changed: refactor
+        # the held rows changed: a low-rank update, or a refactorisation
+        if (not cupd or diag[8] >= max_age
+                or _contact_update(ab, piv, held, lr, winv, dt) < 0):
+            diag[8] = max_age
         if rounds > MAX_CONTACT_ROUNDS:
             ok = False
             break
@@ -1343,7 +1476,8 @@ def _generate_source(refs):
          "                               ground_rows_residual, ground_update, kkt_assemble,",
          "                               kkt_residual, kkt_update, lowrank_correct,",
          "                               lowrank_rate, lowrank_setup, midpoint_ok,",
-         "                               stiffness_band_add)",
+         "                               stiffness_band_add, contact_lowrank,",
+         "                               contact_rows_save)",
          *imports, "",
          f"HAS_GROUND = {bool(ground)}",
          f"HAS_STIFFNESS = {bool(stiff)}", "", "",
@@ -1443,7 +1577,7 @@ def compile_implicit(effects=()):
 
 def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None,
                       t0=0.0, jacobian_age=JACOBIAN_AGE, tol_x=NEWTON_TOL_X, tol_c=NEWTON_TOL_C,
-                      stiffness=True, refresh_rate=REFRESH_RATE, refresh_move=REFRESH_MOVE):
+                      stiffness=True, contact_updates=True):
     """Integrate an inextensible planar rod with the constrained implicit midpoint rule.
 
     Same interface and result as :func:`dynamics.simulate`, without the explicit
@@ -1474,6 +1608,10 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
         (:mod:`dynamics.effects`; the drop does) into the Newton matrix.  False leaves it
         out (simplified Newton, more iterations); the converged steps are the same to the
         Newton tolerance either way.
+    contact_updates : bool, optional
+        With a ground, switch the rows of nodes caught or released since the Newton matrix
+        was factored by a low-rank update (:func:`contact_lowrank`); False refactors the
+        matrix at every change of the held set.
 
     Returns
     -------
@@ -1522,18 +1660,25 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
         rest_arr[1] = rest.duration
     h_min = float(edge_len.min())
     opts = np.array([tol_x * h_min, tol_c, NEWTON_MAX_ITER, float(int(jacobian_age)),
-                     CONTACT_PULL_TOL * h_min, 1.0 if stiffness else 0.0, refresh_rate,
-                     refresh_move])
-    # workspace of the force stiffness (K band, U, C, G, H, S, pivots,
-    # [rank, dropped, start, used], scratch); empty when no effect has a stiffness hook
+                     CONTACT_PULL_TOL * h_min, 1.0 if stiffness else 0.0, REFRESH_RATE,
+                     REFRESH_MOVE, 1.0 if contact_updates else 0.0])
+    # workspace of the low-rank parts of the Newton matrix: the force stiffness (K band,
+    # U, C), the Woodbury data (G, H, S, pivots), counters [stiffness rank, dropped, first
+    # row, used, contact columns, -, stiffness's first row, contact updates], scratch, and
+    # the held set and momentum rows saved at the factorisation (ground only); empty
+    # arrays when no effect has a stiffness hook and there is no ground
     hooks = sum(1 for e in effects
                 if e.kind == "force" and getattr(e, "stiffness", None) is not None)
+    ground = [e for e in effects if e.kind == "constraint"]
     R = STIFFNESS_RANK * hooks
     nk = n if hooks else 0
+    # columns for the stiffness and for the rows of contact changes
+    Rt = R + (CONTACT_RANK if ground else 0)
+    ng = n if ground else 0
     lr = (np.zeros((nk, 2, 2 * STIFFNESS_BAND + 1, 2)), np.zeros((R, nk, 2)),
-          np.zeros((R, R)), np.zeros((N, R)), np.zeros((N, R)), np.zeros((R, R)),
-          np.zeros(R, dtype=np.int64), np.zeros(4, dtype=np.int64), np.zeros(R))
-    ground = [e for e in effects if e.kind == "constraint"]
+          np.zeros((R, R)), np.zeros((N, Rt)), np.zeros((N, Rt)), np.zeros((Rt, Rt)),
+          np.zeros(Rt, dtype=np.int64), np.zeros(8, dtype=np.int64), np.zeros(Rt),
+          np.zeros(ng), np.zeros((ng, 3 * KL + 1)))
     if ground:
         # nodes on (or below) the ground at the start are held; the first step's
         # complementarity check releases those the ground pulls
@@ -1622,5 +1767,6 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
     res.pivoted_factorisations = int(diag[1])
     res.contact_rounds = int(diag[4])
     res.stiffness_lowrank = int(lr[7][3])
+    res.contact_updates = int(lr[7][7])
     res.stiffness_dropped = int(lr[7][1])
     return res

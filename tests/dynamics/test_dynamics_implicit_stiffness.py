@@ -15,6 +15,9 @@ from dynamics.implicit import (
     band_lu_nopivot,
     bending_hessian_add,
     compile_implicit,
+    contact_lowrank,
+    contact_rows_save,
+    ground_rows_matrix,
     kkt_assemble,
     kkt_residual,
     lowrank_correct,
@@ -196,7 +199,7 @@ def test_woodbury_solve_equals_the_dense_solve(pivoting):
     else:
         assert band_lu_nopivot(ab, KL, KL, 1e-10) == 0
         piv[0] = -1
-    G, H = np.zeros((N, 8)), np.zeros((N, 8))
+    G, H = np.full((N, 8), 7.0), np.full((N, 8), 7.0)  # stale entries must not be read
     S, spiv = np.zeros((8, 8)), np.zeros(8, dtype=np.int64)
     start = lowrank_setup(ab, piv, U, C, k, q, winv, held, G, H, S, spiv)
     # the vectors start at node 12, coordinate row 35; interchanges move rows up <= KL
@@ -215,6 +218,86 @@ def test_woodbury_solve_equals_the_dense_solve(pivoting):
     U1 = np.zeros_like(U)
     U1[0] = U[0]
     assert lowrank_setup(ab, piv, U1, C1, 1, q, winv, held, G, H, S, spiv) == -1
+
+
+@pytest.mark.parametrize("pivoting", [False, True])
+@pytest.mark.parametrize("k", [0, 5])
+def test_contact_rows_switched_by_a_low_rank_update(pivoting, k):
+    """Nodes caught or released by the ground after the factorisation: the Woodbury
+    update of their rows (contact_lowrank) solves like a dense matrix assembled with the
+    new held set, with and without a low-rank stiffness part."""
+    rng = np.random.default_rng(11 + k + 2 * pivoting)
+    n = 30
+    N = 3 * n - 1
+    idx = np.array([(3 * i - 1 if i else 0) + a for i in range(n) for a in range(2)])
+    A0 = np.zeros((N, N))
+    for r in range(N):
+        for c in range(max(0, r - KL), min(N, r + KL + 1)):
+            A0[r, c] = rng.standard_normal()
+    if not pivoting:
+        A0 += np.diag(np.full(N, 20.0))
+    U = np.zeros((8, n, 2))
+    U[:k, 12:] = rng.standard_normal((k, n - 12, 2))
+    C = rng.standard_normal((8, 8))
+    winv = rng.random((n, 2)) + 0.5
+    q = 0.3
+
+    def dense(held):
+        ab = _band(A0)
+        ground_rows_matrix(held, ab)
+        M = _dense(ab)
+        if k:
+            Ln = q * winv.reshape(-1, 1) * U[:k].reshape(k, -1).T
+            Ln[2 * np.flatnonzero(held) + 1] = 0.0
+            Lk = np.zeros((N, k))
+            Lk[idx] = Ln
+            Vk = np.zeros((k, N))
+            Vk[:, idx] = C[:k, :k] @ U[:k].reshape(k, -1)
+            M = M + Lk @ Vk
+        return M
+
+    held_f = np.zeros(n)
+    held_f[[14, 20, 25]] = 1.0
+    R = 8 + 4  # room for 4 contact columns
+    # stale entries everywhere, as left by earlier factorisations (whose contact columns
+    # may start above this one's stiffness columns): the kernels must not read them
+    G, H = np.full((N, R), 7.0), np.full((N, R), 7.0)
+    S, spiv = np.zeros((R, R)), np.zeros(R, dtype=np.int64)
+    kinfo = np.zeros(8, dtype=np.int64)
+    mom, hf = np.zeros((n, 3 * KL + 1)), np.zeros(n)
+    ab = _band(A0)
+    contact_rows_save(ab, held_f, mom, hf)
+    ground_rows_matrix(held_f, ab)
+    piv = np.zeros(N, dtype=np.int64)
+    if pivoting:
+        assert band_lu(ab, piv, KL, KL) == 0
+    else:
+        assert band_lu_nopivot(ab, KL, KL, 1e-10) == 0
+        piv[0] = -1
+    if k:
+        kinfo[0] = k
+        kinfo[2] = kinfo[6] = lowrank_setup(ab, piv, U, C, k, q, winv, held_f, G, H, S, spiv)
+    # caught (3, 17, 28), released (14, 20, 25), both, and back to the factorisation's
+    for nodes, c_exp in (([14, 20, 25, 3], 1), ([20, 25, 17], 2), ([14, 28], 3), ([], 3),
+                         ([14, 20, 25], 0)):
+        held = np.zeros(n)
+        held[nodes] = 1.0
+        assert contact_lowrank(ab, piv, held, hf, mom, U, C, k, q, winv, G, H, S, spiv,
+                               kinfo) == c_exp == kinfo[4]
+        b = rng.standard_normal(N)
+        exact = np.linalg.solve(dense(held), b)
+        y = b.copy()
+        band_forward(ab, piv, KL, y)
+        if k + c_exp:
+            lowrank_correct(y, k + c_exp, kinfo[2], G, H, S, spiv, np.zeros(R))
+        band_backward(ab, piv, KL, KL, y)
+        # measured 2e-16 - 1.2e-13 relative
+        np.testing.assert_allclose(y, exact, rtol=0, atol=1e-11 * np.abs(exact).max())
+    # more changes than columns: refused, the caller refactors
+    held = np.zeros(n)
+    held[1:14] = 1.0  # 16 changes, room for 12 - k
+    assert contact_lowrank(ab, piv, held, hf, mom, U, C, k, q, winv, G, H, S, spiv,
+                           kinfo) == -1
 
 
 def test_newton_matrix_with_the_drop_is_the_jacobian_of_the_residual():
@@ -277,7 +360,7 @@ def test_newton_matrix_with_the_drop_is_the_jacobian_of_the_residual():
     # the generated pair: factor, Woodbury, solve
     lr = (np.zeros((n, 2, 5, 2)), np.zeros((8, n, 2)), np.zeros((8, 8)), np.zeros((N, 8)),
           np.zeros((N, 8)), np.zeros((8, 8)), np.zeros(8, dtype=np.int64),
-          np.zeros(4, dtype=np.int64), np.zeros(8))
+          np.zeros(8, dtype=np.int64), np.zeros(8), np.zeros(0), np.zeros((0, 3 * KL + 1)))
     piv = np.zeros(N, dtype=np.int64)
     ab = np.zeros((N, 3 * KL + 1))
     info = mod._jacobian(rod.x, d0, xm, d0 / dt, 0.0, mu0, w, el, rod.mass, 1.0, dt, ab, piv,
