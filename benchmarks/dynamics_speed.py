@@ -7,12 +7,16 @@ Prints medians and ratios for:
    and the share of the bending kernel itself;
 2. the added cost of each effect, alone with bending;
 3. node-updates per second and the paper's scenes (supp-fig5, strip);
+3b. the impact runs of issue 5 (``elastocap impact``); with ``--baseline REV`` the same
+   runs of git revision REV side by side (fresh processes, alternated, CPU-time medians);
 4. Python-per-step driving vs the compiled loop (the per-step overhead avoided);
-5. Newton/tridiagonal SHAKE vs Gauss-Seidel SHAKE (iterations and time);
+5. Newton/tridiagonal SHAKE vs Gauss-Seidel SHAKE (iterations and time), and the cost of
+   each pass of one Newton iteration and of the velocity projection;
 6. compile time with a cold cache vs a warm cache (fresh processes);
 7. with ``--dt-bound``: the explicit stability constant C by bisection.
 
-Usage: ``python benchmarks/dynamics_speed.py [--fast] [--dt-bound]``.
+Usage: ``python benchmarks/dynamics_speed.py [--fast] [--dt-bound] [--only 3b]
+[--baseline REV]``.
 """
 
 from __future__ import annotations
@@ -38,8 +42,18 @@ from dynamics import (
     Rod,
     simulate,
 )
-from dynamics.bending import bending_force_add
-from dynamics.constraints import shake, velocity_projection
+from dynamics.bending import BENDING_WORK_ROWS, bending_force_add
+from dynamics.constraints import (
+    _edges,
+    _eliminate,
+    _move,
+    _shake_rows,
+    _split,
+    _substitute,
+    new_work,
+    shake,
+    velocity_projection,
+)
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests", "dynamics"))
 from dyn_ext_kernels import AnchorSpring  # noqa: E402
@@ -56,28 +70,28 @@ def wavy_rod(n, L=4.6, amp=0.8):
 
 
 @numba.njit(cache=True)
-def bare_rattle(x, v, dt, n_steps, edge_len, winv, B, F, xn, vh, cp, dp, ex, ez):
+def bare_rattle(x, v, dt, n_steps, edge_len, winv, B, F, xn, vh, cw, lam, bw):
     """The same RATTLE step as the generated stepper, bending only, written by hand."""
     n = x.shape[0]
     half = 0.5 * dt
     F[:, :] = 0.0
-    bending_force_add(x, edge_len, B, F)
+    bending_force_add(x, edge_len, B, F, bw)
     for _ in range(n_steps):
         for i in range(n):
             for k in range(2):
                 vh[i, k] = v[i, k] + half * winv[i, k] * F[i, k]
                 xn[i, k] = x[i, k] + dt * vh[i, k]
-        shake(x, xn, winv, edge_len, cp, dp, ex, ez)
+        shake(x, xn, winv, edge_len, cw, lam, True)
         for i in range(n):
             for k in range(2):
                 vh[i, k] = (xn[i, k] - x[i, k]) / dt
                 x[i, k] = xn[i, k]
                 F[i, k] = 0.0
-        bending_force_add(x, edge_len, B, F)
+        bending_force_add(x, edge_len, B, F, bw)
         for i in range(n):
             for k in range(2):
                 v[i, k] = vh[i, k] + half * winv[i, k] * F[i, k]
-        velocity_projection(x, v, winv, cp, dp, ex, ez)
+        velocity_projection(x, v, winv, cw)
 
 
 @numba.njit(cache=True)
@@ -138,8 +152,9 @@ def bench_overhead(n=200, steps=20000, repeat=5):
 
     def bare():
         x, v = rod.x.copy(), rod.v.copy()
-        w = [np.zeros_like(x) for _ in range(3)] + [np.zeros(n) for _ in range(4)]
-        bare_rattle(x, v, dt, steps, rod.edge_len, winv, 1.0, *w)
+        w = [np.zeros_like(x) for _ in range(3)]
+        bare_rattle(x, v, dt, steps, rod.edge_len, winv, 1.0, *w, new_work(n),
+                    np.zeros(n + 2), np.zeros((BENDING_WORK_ROWS, n + 1)))
 
     def gen():
         r = simulate(rod, (), dt=dt, t_end=steps * dt, frames=2)
@@ -211,17 +226,58 @@ def bench_scenes():
               f"{r.steps:7d} steps {r.wall_time:6.3f} s  status {r.status}")
 
 
-def bench_impacts(repeat=3):
-    """The impact runs of issue 5's targets, at default resolution, after compilation:
-    the automatic dt (0.9 of the bound without a ground, 0.5 with one) side by side with
-    the former fixed 0.5, in the same run."""
+IMPACT_CASES = (("supp-fig5", {}), ("supp-fig5", {"drop.wetted_length": 3.5}),
+                ("supp-fig5", {"drop.wetted_length": 4.0}), ("fig3-strip", {}))
+
+#: Run in a fresh process by :func:`bench_impacts` with ``--baseline``: each case once to
+#: compile/load, then ``reps`` timed runs; prints one JSON line per case.
+IMPACT_SNIPPET = """
+import json, sys, time
+from elastocap.impact import run_impact
+from elastocap.scene import load_scene
+import elastocap, dynamics
+assert elastocap.__file__.startswith(sys.argv[1]), (elastocap.__file__, sys.argv[1])
+for name, ov in json.loads(sys.argv[2]):
+    scene = load_scene(name, ov)
+    run_impact(scene)
+    cpu, wall = [], []
+    for _ in range(int(sys.argv[3])):
+        c, w = time.thread_time(), time.perf_counter()
+        r = run_impact(scene)
+        cpu.append(time.thread_time() - c)
+        wall.append(time.perf_counter() - w)
+    print(json.dumps(dict(case=[name, ov], cpu=min(cpu), wall=min(wall), outcome=r.outcome,
+                          final_measure=r.final_measure, t_end=r.t_end, steps=r.steps,
+                          it=r.simulation.shake_iterations_mean,
+                          loop=r.simulation.wall_time)))
+"""
+
+
+def _export_revision(rev, dest):
+    """Files of git revision ``rev`` of this repository into ``dest`` (no checkout, no
+    change to the repository)."""
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    archive = subprocess.run(["git", "-C", root, "archive", rev], capture_output=True,
+                             check=True).stdout
+    subprocess.run(["tar", "-x", "-C", dest], input=archive, check=True)
+
+
+def bench_impacts(repeat=3, baseline=None):
+    """The impact runs of issue 5's targets, at default resolution, after compilation.
+
+    Without ``baseline``: the automatic dt (0.9 of the bound without a ground, 0.5 with
+    one) side by side with the former fixed 0.5, in the same run.  With ``baseline`` (a git
+    revision): the same runs by that revision and by the working tree, in fresh processes
+    alternated ``repeat`` times (the machine is shared: medians of per-process minima of
+    CPU time, wall time beside).
+    """
     section("3b. impact runs (elastocap impact, default resolution, after compile)")
+    if baseline is not None:
+        return _bench_impacts_against(repeat, baseline)
     from elastocap.impact import impact_settings, run_impact
     from elastocap.scene import load_scene
 
-    cases = (("supp-fig5", {}), ("supp-fig5", {"drop.wetted_length": 4.0}),
-             ("fig3-strip", {}))
-    for name, ov in cases:
+    for name, ov in IMPACT_CASES:
         scene = load_scene(name, ov)
         st = impact_settings(scene)
         half = scene.with_overrides({"numerics.dt": 0.5 * st["dt_max"]})
@@ -242,6 +298,38 @@ def bench_impacts(repeat=3):
               f"  {ra.wall_time_s / ra.steps * 1e6:.2f} us/step")
 
 
+def _bench_impacts_against(repeat, baseline, inner=2):
+    import json
+
+    here = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+    cases = json.dumps([list(c) for c in IMPACT_CASES])
+    with tempfile.TemporaryDirectory() as tmp:
+        _export_revision(baseline, tmp)
+        trees = {baseline: tmp, "working tree": here}
+        res = {k: [] for k in trees}
+        for r in range(repeat):
+            for label in (trees if r % 2 == 0 else list(trees)[::-1]):
+                env = dict(os.environ, PYTHONPATH=trees[label])
+                out = subprocess.run([sys.executable, "-c", IMPACT_SNIPPET, trees[label], cases,
+                                      str(inner)], env=env, cwd=trees[label],
+                                     capture_output=True, text=True, check=True).stdout
+                res[label].append([json.loads(line) for line in out.splitlines()])
+    for k, (name, ov) in enumerate(IMPACT_CASES):
+        label = name + "".join(f" {a}={b}" for a, b in ov.items())
+        rows = {t: [run[k] for run in res[t]] for t in trees}
+        med = {t: {q: float(np.median([x[q] for x in rows[t]])) for q in ("cpu", "wall")}
+               for t in trees}
+        old, new = (rows[t][-1] for t in trees)
+        print(f"{label:30s} {baseline}: {med[baseline]['cpu']:.3f} s cpu "
+              f"({med[baseline]['wall']:.3f} wall)  working tree: "
+              f"{med['working tree']['cpu']:.3f} s cpu ({med['working tree']['wall']:.3f} "
+              f"wall)  ratio {med[baseline]['cpu'] / med['working tree']['cpu']:.2f}")
+        print(f"{'':30s} outcome {old['outcome']}/{new['outcome']}  final measure "
+              f"{old['final_measure']:.12f}/{new['final_measure']:.12f}  t_end "
+              f"{old['t_end']:.6f}/{new['t_end']:.6f}  SHAKE updates/step {old['it']:.3f}/"
+              f"{new['it']:.3f}")
+
+
 def bench_python_loop(n=100, steps=2000):
     section(f"4. Python call per step vs compiled loop ({n} edges)")
     rod = wavy_rod(n)
@@ -250,9 +338,10 @@ def bench_python_loop(n=100, steps=2000):
     x, v = rod.x.copy(), rod.v.copy()
     m = rod.mass
     winv0 = np.repeat((1 / m)[:, None], 2, axis=1).copy()
-    wn, we = np.zeros((7, n + 1, 2)), np.zeros((4, n))
+    A, cw, lam = np.zeros((7, n + 1, 2)), new_work(n), np.zeros(n + 2)
+    bw = np.zeros((BENDING_WORK_ROWS, n + 1))
     energy, diag, rest = np.zeros(1), np.zeros(8), np.zeros(3)
-    args = (rod.edge_len, m, winv0, 1.0, wn, we, energy, diag, rest)
+    args = (rod.edge_len, m, winv0, 1.0, A, cw, lam, bw, energy, diag, rest)
     mod.run(x, v, 0.0, dt, 1, *args)
 
     def per_step():
@@ -278,13 +367,14 @@ def bench_shake(repeat=5):
         vel = rng.standard_normal((n + 1, 2))
         xs = rod.x + dt * vel
         winv = np.repeat((1 / rod.mass)[:, None], 2, axis=1).copy()
-        w = [np.zeros(n) for _ in range(4)]
+        cw, lam = new_work(n), np.zeros(n + 2)
         xn = xs.copy()
-        _, it, _, _ = shake(rod.x, xn, winv, rod.edge_len, *w)
+        _, it, _, _ = shake(rod.x, xn, winv, rod.edge_len, cw, lam)
         xg = xs.copy()
         sw = gauss_seidel_shake(rod.x, xg, winv, rod.edge_len, 1e-13, 100000)
-        def newton(rod=rod, xs=xs, winv=winv, w=w):
-            shake(rod.x, xs.copy(), winv, rod.edge_len, *w)
+
+        def newton(rod=rod, xs=xs, winv=winv, cw=cw, lam=lam):
+            shake(rod.x, xs.copy(), winv, rod.edge_len, cw, lam)
 
         def gs(rod=rod, xs=xs, winv=winv):
             gauss_seidel_shake(rod.x, xs.copy(), winv, rod.edge_len, 1e-13, 100000)
@@ -293,6 +383,59 @@ def bench_shake(repeat=5):
         tg = median_time(gs, repeat)
         print(f"N={n:3d}: Newton {it} iterations {tn * 1e6:7.1f} us | Gauss-Seidel {sw:5d} "
               f"sweeps {tg * 1e6:8.1f} us | ratio {tg / tn:6.1f}x")
+    bench_passes(repeat)
+
+
+@numba.njit(cache=True)
+def _passes_loop(which, xo, xf, wf, edge_len, work, w0, k):
+    s = 0.0
+    for _ in range(k):
+        if which == 0:
+            _split(xf, work, 8)
+            _shake_rows(edge_len, work)
+        elif which == 1:
+            for r in range(2, 7):
+                for i in range(work.shape[1]):
+                    work[r, i] = w0[r, i]
+            s += _eliminate(work)[0]
+        elif which == 2:
+            for r in range(2, 7):
+                for i in range(work.shape[1]):
+                    work[r, i] = w0[r, i]
+        elif which == 3:
+            _substitute(work)
+        elif which == 4:
+            _move(xf, wf, work, 5)
+        else:
+            _edges(xo, work)
+    return s
+
+
+def bench_passes(repeat=5, k=20000):
+    """Cost of each pass of a SHAKE Newton iteration (rows, two-ended elimination, back
+    substitution, node update) on a rod of 198 edges (fig3-strip's resolution)."""
+    n = 198
+    rod = wavy_rod(n)
+    winv = np.repeat((1 / rod.mass)[:, None], 2, axis=1).copy()
+    xs = rod.x + 1e-5 * rod.edge_len[0] * np.random.default_rng(2).standard_normal(rod.x.shape)
+    work = new_work(n)
+    xo, xf, wf = rod.x.reshape(-1), xs.reshape(-1), winv.reshape(-1)
+    _edges(xo, work)
+    _split(wf, work, 10)
+    _split(xf, work, 8)
+    _shake_rows(rod.edge_len, work)
+    w0 = work.copy()
+    names = ("rows (split + build)", "elimination", "", "back substitution", "node update",
+             "edges")
+    t = {}
+    for which in range(6):
+        _passes_loop(which, xo, xf.copy(), wf, rod.edge_len, work, w0, 10)
+        t[which] = min(median_time(lambda: _passes_loop(which, xo, xf.copy(), wf,  # noqa: B023
+                                                        rod.edge_len, work, w0, k), 1)
+                       for _ in range(repeat)) / k
+    t[1] -= t[2]  # the restore of the rows
+    print(f"one SHAKE Newton iteration, {n} edges: " + ", ".join(
+        f"{names[w]} {t[w] * 1e9:.0f} ns" for w in (0, 1, 3, 4)) + f"; edges {t[5] * 1e9:.0f} ns")
 
 
 COMPILE_SNIPPET = """
@@ -344,16 +487,19 @@ def measure_dt_bound():
         print(f"N={n:3d}: C in [{lo:.4f}, {hi:.4f}]  (DT_BOUND_C = {dynamics.DT_BOUND_C})")
 
 
-def main(fast=False, dt_bound=False):
+def main(fast=False, dt_bound=False, only=None, baseline=None):
     steps = 4000 if fast else 20000
     repeat = 3 if fast else 5
     print(f"numba {numba.__version__}, numpy {np.__version__}, threads "
           f"{numba.config.NUMBA_NUM_THREADS}")
+    if only == "3b":
+        bench_impacts(repeat=1 if fast else 5, baseline=baseline)
+        return
     bench_overhead(steps=steps, repeat=repeat)
     bench_effects(steps=steps, repeat=repeat)
     if not fast:
         bench_scenes()
-    bench_impacts(repeat=1 if fast else 3)
+    bench_impacts(repeat=1 if fast else 3, baseline=baseline)
     bench_python_loop()
     bench_shake(repeat=repeat)
     if not fast:
@@ -366,5 +512,8 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fast", action="store_true")
     ap.add_argument("--dt-bound", action="store_true")
+    ap.add_argument("--only", choices=["3b"], help="run one section")
+    ap.add_argument("--baseline", metavar="REV",
+                    help="git revision to time beside the working tree in section 3b")
     a = ap.parse_args()
-    main(fast=a.fast, dt_bound=a.dt_bound)
+    main(fast=a.fast, dt_bound=a.dt_bound, only=a.only, baseline=a.baseline)

@@ -4,14 +4,41 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-__all__ = ["Rod"]
+__all__ = ["Rod", "kinetic_energy"]
 
 #: Relative edge-length mismatch tolerated between given positions and ``edge_len``.
 #: Positions built with trigonometric functions satisfy 1e-14; 1e-9 only refuses real
 #: mistakes (the first projection then restores round-off accuracy).
 EDGE_LEN_TOL = 1e-9
+
+
+@numba.njit(cache=True)
+def kinetic_energy(mass, v):
+    """Kinetic energy ``sum_i m_i |v_i|**2 / 2`` of node masses ``mass`` (n,) and velocities
+    ``v`` (n, 2) (energy units).
+
+    Four partial sums: one running sum is a serial chain of additions (4 cycles each,
+    0.3 us at 200 nodes, 2% of a time step); the result differs from it by round-off.
+    """
+    n = mass.shape[0]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    i = 0
+    while i + 3 < n:
+        s0 += mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
+        s1 += mass[i + 1] * (v[i + 1, 0] * v[i + 1, 0] + v[i + 1, 1] * v[i + 1, 1])
+        s2 += mass[i + 2] * (v[i + 2, 0] * v[i + 2, 0] + v[i + 2, 1] * v[i + 2, 1])
+        s3 += mass[i + 3] * (v[i + 3, 0] * v[i + 3, 0] + v[i + 3, 1] * v[i + 3, 1])
+        i += 4
+    while i < n:
+        s0 += mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
+        i += 1
+    return 0.5 * ((s0 + s1) + (s2 + s3))
 
 
 @dataclass

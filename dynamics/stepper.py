@@ -8,8 +8,10 @@ with damping split around it (Strang):
 1. damping effects: exact decay of ``v`` over ``dt/2``;
 2. half kick ``v_h = v + dt/2 M^-1 F(x)``; drift ``x* = x + dt v_h``;
 3. constraint effects, stage 0 (clamps, ground hold coordinates of ``x*``);
-4. SHAKE: project ``x*`` onto the edge lengths (Newton + tridiagonal solve);
-   ``v_h = (x_new - x)/dt``;
+4. SHAKE: project ``x*`` onto the edge lengths (Newton + tridiagonal solves), starting
+   from ``x* + W G^T lam`` with ``lam`` the previous step's multipliers (the constraint
+   forces change little in a step: the same root in fewer updates, 2 instead of 3 on
+   fig3-strip); ``v_h = (x_new - x)/dt``;
 5. forces at ``x_new``; half kick ``v = v_h + dt/2 W F(x_new)``;
 6. constraint effects, stage 1; RATTLE velocity projection (``G v = 0``);
 7. damping effects over ``dt/2``.
@@ -24,13 +26,24 @@ For each distinct tuple of effect kernels the module generates the source of a s
 directory and imports it, so that numba's on-disk cache (``cache=True``) works on it and
 a second process loads the compiled loop instead of compiling it.  An absent effect costs
 nothing, and all the steps between two output frames or events run inside one compiled
-call (no Python per step).  Measured (``benchmarks/dynamics_speed.py``, 200 edges):
-the generated bending-only stepper runs at 0.92-1.03x the time of a hand-written RATTLE
-loop with the same kernels (noise level); a force effect adds 0-3% (gravity, loads, an
-external kernel), damping 12%, a constraint effect (ground, clamp) 4-5%; a Python call
-per step would add 3.1 us/step (1.6x at 100 edges).  Not chosen: a generic
-loop over a tuple of first-class functions (indirect calls, not cacheable by numba).
-Cold compile of one stepper ~7-15 s, warm load ~0.5 s.
+call (no Python per step), as does the recording of the output frames
+(``run_frames``: positions and energies written into preallocated arrays; Python only
+between events).  Measured (``benchmarks/dynamics_speed.py``, 200 edges): the generated
+bending-only stepper runs at 0.92-1.03x the time of a hand-written RATTLE loop with the
+same kernels (noise level); a force effect adds 0-3% (gravity, loads, an external
+kernel), damping 12%, a constraint effect (ground, clamp) 4-5%; a Python call per step
+would add 3.1 us/step (1.6x at 100 edges), a Python call and a recorded frame every 58
+steps (supp-fig5) 0.4 us/step.  The loops over all coordinates run on flat views of the
+(n, 2) arrays: numba indexes an (n, 2) array with a run-time row stride, which keeps a
+loop scalar.  Not chosen: a generic loop over a tuple of first-class functions (indirect
+calls, not cacheable by numba).  Cold compile of one stepper ~7-30 s, warm load ~0.5 s.
+
+Where the time of an impact run goes (issue 5, measured with cycle counters around each
+part of the step on supp-fig5 and fig3-strip): SHAKE 42%, the velocity projection 18%,
+bending 13-14%, the external forces (capillary, gravity) 11-14%, damping 8% (supp-fig5),
+contact, kicks and bookkeeping ~10% (fig3-strip); outside the loop, the crossing checks
+and measures of ``elastocap.impact`` take ~2%.  Section 3b of
+``benchmarks/dynamics_speed.py`` times the runs (``--baseline REV`` beside a revision).
 
 Cache directory: ``$DYNAMICS_CACHE_DIR``, else ``$XDG_CACHE_HOME/elastocap-dynamics``,
 else ``~/.cache/elastocap-dynamics``, else the system temporary directory.
@@ -52,9 +65,10 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from .constraints import SHAKE_FINAL
+from .bending import BENDING_WORK_ROWS
+from .constraints import SHAKE_FINAL, new_work
 from .effects import KINDS
-from .rod import Rod
+from .rod import Rod, kinetic_energy
 
 __all__ = [
     "Event",
@@ -337,7 +351,16 @@ def _kernel_ref(effect):
 
 
 def _generate_source(refs):
-    """Source of a stepper module for ``refs = [(kind, module, name), ...]``."""
+    """Source of a stepper module for ``refs = [(kind, module, name), ...]``.
+
+    Layout of the generated functions' arguments: ``x, v`` (n, 2) the state; ``A`` the
+    (7, n, 2) node work arrays (forces F, prediction xn, half-step velocity vh, inverse
+    masses winv in force this step, and three backups for rejected steps); ``cw`` the
+    constraint work array and ``lam`` the SHAKE multipliers of the last step (padded, see
+    :mod:`dynamics.constraints`); ``bw`` the bending work array.  The loops over all
+    coordinates run on flat views (``*f``, made once per ``run`` call): numba indexes an
+    (n, 2) array with a run-time row stride, which keeps a loop scalar.
+    """
     imports, P = [], []
     forces, damps, cons = [], [], []
     for j, (kind, mod, name) in enumerate(refs):
@@ -348,6 +371,8 @@ def _generate_source(refs):
     pargs = "".join(", " + p for p in P)
     final = repr(SHAKE_FINAL)
     fargs = "".join(", " + p for _, p in forces)
+    # node arrays of _step: 2-D (for the kernels) and flat views (for the loops)
+    nodes = "F, xn, vh, winv, Ff, xnf, vhf, winvf, xf, vf, winv0f"
     L = []
     L.append("# Generated by dynamics.stepper: a RATTLE stepper specialised to its effects.")
     L.append("# Do not edit; the file name is a hash of this text and of the kernels' sources.")
@@ -355,56 +380,69 @@ def _generate_source(refs):
     L.append("import numpy as np")
     L.append("from dynamics.bending import bending_force_add")
     L.append("from dynamics.constraints import constraint_error, shake, velocity_projection")
+    L.append("from dynamics.rod import kinetic_energy")
     L += imports
     L.append("")
     L.append("")
     L.append("@numba.njit(cache=True)")
-    L.append(f"def _forces(x, v, t, edge_len, mass, B, F, energy{fargs}):")
-    L.append("    for i in range(x.shape[0]):")
-    L.append("        F[i, 0] = 0.0")
-    L.append("        F[i, 1] = 0.0")
-    L.append("    energy[0] = bending_force_add(x, edge_len, B, F)")
+    L.append(f"def _forces(x, v, t, edge_len, mass, B, F, Ff, energy, bw{fargs}):")
+    L.append("    for j in range(Ff.shape[0]):")
+    L.append("        Ff[j] = 0.0")
+    L.append("    energy[0] = bending_force_add(x, edge_len, B, F, bw)")
     for k, (alias, p) in enumerate(forces):
         L.append(f"    energy[{k + 1}] = {alias}(x, v, t, {p}, edge_len, mass, F)")
     L.append("")
     L.append("")
     L.append("@numba.njit(cache=True)")
-    L.append(f"def prepare(x, v, t, edge_len, winv0, wn, we{pargs}):")
-    L.append("    xn = wn[1]")
-    L.append("    winv = wn[3]")
+    L.append(f"def prepare(x, v, t, edge_len, winv0, A, cw, lam{pargs}):")
+    L.append("    xn = A[1]")
+    L.append("    winv = A[3]")
     L.append("    xn[:, :] = x")
     L.append("    winv[:, :] = winv0")
     for alias, p in cons:
         L.append(f"    {alias}(xn, v, t, {p}, edge_len, winv, 0)")
-    L.append("    err, it, edge, err0 = shake(x, xn, winv, edge_len, we[0], we[1], we[2],"
-             " we[3])")
+    L.append("    lam[:] = 0.0")
+    L.append("    err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, False)")
+    L.append("    lam[:] = 0.0")
     L.append("    x[:, :] = xn")
     for alias, p in cons:
         L.append(f"    {alias}(x, v, t, {p}, edge_len, winv, 1)")
-    L.append("    velocity_projection(x, v, winv, we[0], we[1], we[2], we[3])")
+    L.append("    velocity_projection(x, v, winv, cw)")
     L.append("    return constraint_error(x, edge_len)")
     L.append("")
     L.append("")
     L.append("@numba.njit(cache=True)")
-    L.append(f"def _step(x, v, t, dt, edge_len, mass, winv0, B, wn, we, energy, diag{pargs}):")
-    L.append("    n = x.shape[0]")
-    L.append("    F = wn[0]")
-    L.append("    xn = wn[1]")
-    L.append("    vh = wn[2]")
-    L.append("    winv = wn[3]")
+    L.append(f"def _step(x, v, t, dt, edge_len, mass, winv0, B, {nodes}, cw, lam, bw, energy,"
+             f" diag{pargs}):")
+    L.append("    nc = xf.shape[0]")
     L.append("    half = 0.5 * dt")
     L.append("    t1 = t + dt")
     for alias, p in damps:
         L.append(f"    {alias}(x, v, t, {p}, edge_len, mass, half)")
-    L.append("    for i in range(n):")
-    L.append("        for k in range(2):")
-    L.append("            vh[i, k] = v[i, k] + half * winv0[i, k] * F[i, k]")
-    L.append("            xn[i, k] = x[i, k] + dt * vh[i, k]")
-    L.append("            winv[i, k] = winv0[i, k]")
+    L.append("    for j in range(nc):")
+    L.append("        vhf[j] = vf[j] + half * winv0f[j] * Ff[j]")
+    L.append("        xnf[j] = xf[j] + dt * vhf[j]")
+    L.append("        winvf[j] = winv0f[j]")
     for alias, p in cons:
         L.append(f"    {alias}(xn, vh, t1, {p}, edge_len, winv, 0)")
-    L.append(f"    err, it, edge, err0 = shake(x, xn, winv, edge_len, we[0], we[1], we[2], we[3],"
-             f" {final})")
+    # SHAKE starts from the drift moved by the previous step's multipliers (a predictor of
+    # the constraint forces); the root is the same, only the iteration count changes
+    L.append(f"    err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, True, {final})")
+    L.append("    if it < 0:")
+    L.append("        # the predictor can mislead after an abrupt change (an impact): retry from")
+    L.append("        # the plain drift before rejecting the step")
+    L.append("        for j in range(nc):")
+    L.append("            xnf[j] = xf[j] + dt * vhf[j]")
+    L.append("            winvf[j] = winv0f[j]")
+    for alias, p in cons:
+        L.append(f"        {alias}(xn, vh, t1, {p}, edge_len, winv, 0)")
+    L.append("        lam[:] = 0.0")
+    L.append(f"        err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, False, {final})")
+    L.append("    if it == 0:")
+    L.append("        # the prediction needed no update: its multipliers may be stale (a rod at")
+    L.append("        # rest would keep being moved by them at round-off level); start the")
+    L.append("        # next step from the plain drift")
+    L.append("        lam[:] = 0.0")
     L.append("    if err0 > diag[0]:")
     L.append("        diag[0] = err0")
     L.append("    if it < 0:")
@@ -418,16 +456,15 @@ def _generate_source(refs):
         # (zeroes winv of) every coordinate it sets)
         L.append(f"    for _round in range({CONTACT_ROUNDS}):")
         L.append("        held = 0")
-        L.append("        for i in range(n):")
-        L.append("            held += (winv[i, 0] == 0.0) + (winv[i, 1] == 0.0)")
+        L.append("        for j in range(nc):")
+        L.append("            held += winvf[j] == 0.0")
         for alias, p in cons:
             L.append(f"        {alias}(xn, vh, t1, {p}, edge_len, winv, 0)")
-        L.append("        for i in range(n):")
-        L.append("            held -= (winv[i, 0] == 0.0) + (winv[i, 1] == 0.0)")
+        L.append("        for j in range(nc):")
+        L.append("            held -= winvf[j] == 0.0")
         L.append("        if held == 0:")
         L.append("            break")
-        L.append("        err, it2, edge, err1 = shake(x, xn, winv, edge_len, we[0], we[1], we[2],"
-                 " we[3], 0.0)")
+        L.append("        err, it2, edge, err1 = shake(x, xn, winv, edge_len, cw, lam, False, 0.0)")
         L.append("        if it2 < 0:")
         L.append("            diag[4] = edge")
         L.append("            diag[5] = err")
@@ -437,75 +474,87 @@ def _generate_source(refs):
     L.append("        diag[2] = it")
     L.append("    diag[3] += it")
     L.append("    inv_dt = 1.0 / dt")
-    L.append("    for i in range(n):")
-    L.append("        for k in range(2):")
-    L.append("            vh[i, k] = (xn[i, k] - x[i, k]) * inv_dt")
-    L.append("            x[i, k] = xn[i, k]")
-    L.append(f"    _forces(x, vh, t1, edge_len, mass, B, F, energy{fargs})")
-    L.append("    for i in range(n):")
-    L.append("        for k in range(2):")
-    L.append("            v[i, k] = vh[i, k] + half * winv[i, k] * F[i, k]")
+    L.append("    for j in range(nc):")
+    L.append("        vhf[j] = (xnf[j] - xf[j]) * inv_dt")
+    L.append("        xf[j] = xnf[j]")
+    L.append(f"    _forces(x, vh, t1, edge_len, mass, B, F, Ff, energy, bw{fargs})")
+    L.append("    for j in range(nc):")
+    L.append("        vf[j] = vhf[j] + half * winvf[j] * Ff[j]")
     for alias, p in cons:
         L.append(f"    {alias}(x, v, t1, {p}, edge_len, winv, 1)")
-    L.append("    velocity_projection(x, v, winv, we[0], we[1], we[2], we[3])")
+    L.append("    velocity_projection(x, v, winv, cw)")
     for alias, p in damps:
         L.append(f"    {alias}(x, v, t1 - half, {p}, edge_len, mass, half)")
     L.append("    return 0")
     L.append("")
     L.append("")
     L.append("@numba.njit(cache=True)")
-    L.append(f"def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, wn, we, energy, diag,"
-             f" rest{pargs}):")
-    L.append("    n = x.shape[0]")
-    L.append("    F = wn[0]")
-    L.append("    xb = wn[4]")
-    L.append("    vb = wn[5]")
-    L.append("    fb = wn[6]")
-    L.append(f"    _forces(x, v, t0, edge_len, mass, B, F, energy{fargs})")
+    L.append(f"def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,"
+             f" diag, rest{pargs}):")
+    L.append("    nc = x.size")
+    L.append("    Af = A.reshape(A.shape[0], nc)")
+    L.append("    xf = x.reshape(nc)")
+    L.append("    vf = v.reshape(nc)")
+    L.append("    winv0f = winv0.reshape(nc)")
+    L.append("    F = A[0]")
+    L.append("    xn = A[1]")
+    L.append("    vh = A[2]")
+    L.append("    winv = A[3]")
+    L.append("    Ff = Af[0]")
+    L.append("    xnf = Af[1]")
+    L.append("    vhf = Af[2]")
+    L.append("    winvf = Af[3]")
+    L.append("    xbf = Af[4]")
+    L.append("    vbf = Af[5]")
+    L.append("    fbf = Af[6]")
+    L.append(f"    _forces(x, v, t0, edge_len, mass, B, F, Ff, energy, bw{fargs})")
     L.append("    status = 0")
     L.append("    steps = 0")
     L.append("    for s in range(n_steps):")
     L.append("        t = t0 + s * dt")
     if damps:  # only damping touches v before the projection can fail
-        L.append("        vb[:, :] = v")
-    L.append(f"        st = _step(x, v, t, dt, edge_len, mass, winv0, B, wn, we, energy, diag"
-             f"{pargs})")
+        L.append("        for j in range(nc):")
+        L.append("            vbf[j] = vf[j]")
+    L.append(f"        st = _step(x, v, t, dt, edge_len, mass, winv0, B, {nodes}, cw, lam, bw,"
+             f" energy, diag{pargs})")
     L.append("        if st == 2:")
-    L.append("            # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps")
+    L.append("            # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps, without")
+    L.append("            # the multiplier predictor (it scales with the step squared)")
+    L.append("            for j in range(nc):")
     if damps:
-        L.append("            v[:, :] = vb")
-    L.append("            xb[:, :] = x")
-    L.append("            vb[:, :] = v")
-    L.append("            fb[:, :] = F")
+        L.append("                vf[j] = vbf[j]")
+    L.append("                xbf[j] = xf[j]")
+    L.append("                vbf[j] = vf[j]")
+    L.append("                fbf[j] = Ff[j]")
     L.append(f"            for level in range(1, {MAX_HALVINGS} + 1):")
     L.append("                diag[6] += 1")
     L.append("                sub = 2 ** level")
     L.append("                h = dt / sub")
     L.append("                st = 0")
+    L.append("                lam[:] = 0.0")
     L.append("                for j in range(sub):")
-    L.append(f"                    st = _step(x, v, t + j * h, h, edge_len, mass, winv0, B, wn, we,"
-             f" energy, diag{pargs})")
+    L.append(f"                    st = _step(x, v, t + j * h, h, edge_len, mass, winv0, B,"
+             f" {nodes}, cw, lam, bw, energy, diag{pargs})")
     L.append("                    if st != 0:")
     L.append("                        break")
     L.append("                if st == 0:")
     L.append("                    if level > diag[7]:")
     L.append("                        diag[7] = level")
     L.append("                    break")
-    L.append("                x[:, :] = xb")
-    L.append("                v[:, :] = vb")
-    L.append("                F[:, :] = fb")
+    L.append("                for j in range(nc):")
+    L.append("                    xf[j] = xbf[j]")
+    L.append("                    vf[j] = vbf[j]")
+    L.append("                    Ff[j] = fbf[j]")
+    L.append("            lam[:] = 0.0")
     L.append("            if st != 0:")
     L.append("                status = 2")
     L.append("                break")
     L.append("        steps += 1")
-    L.append("        ke = 0.0")
-    L.append("        for i in range(n):")
-    L.append("            ke += mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])")
-    L.append("        ke *= 0.5")
+    L.append("        ke = kinetic_energy(mass, v)")
     L.append("        if not np.isfinite(ke + np.sum(energy)):")
     L.append("            status = 3")
     L.append("            worst = 0")
-    L.append("            for i in range(n):")
+    L.append("            for i in range(x.shape[0]):")
     L.append("                if not (np.isfinite(v[i, 0]) and np.isfinite(v[i, 1])")
     L.append("                        and np.isfinite(x[i, 0]) and np.isfinite(x[i, 1])):")
     L.append("                    worst = i")
@@ -525,6 +574,31 @@ def _generate_source(refs):
     L.append("        diag[0] = err0")
     L.append("    return status, steps")
     L.append("")
+    L.append("")
+    L.append("@numba.njit(cache=True)")
+    L.append(f"def run_frames(x, v, t0, dt, step, stops, record, pos, ens, rec_steps, nrec,"
+             f" edge_len, mass, winv0, B, A, cw, lam, bw, energy, diag, rest{pargs}):")
+    L.append("    # run to each stop in turn (one run call per stop, as a Python loop over run")
+    L.append("    # would do) and record the frames flagged in ``record``")
+    L.append("    status = 0")
+    L.append("    for k in range(stops.shape[0]):")
+    L.append("        if stops[k] > step:")
+    L.append("            status, done = run(x, v, t0 + step * dt, dt, stops[k] - step, edge_len,"
+             " mass, winv0, B, A, cw, lam, bw, energy, diag, rest" + pargs + ")")
+    L.append("            step += done")
+    L.append("            if status != 0:")
+    L.append("                break")
+    L.append("        if record[k]:")
+    L.append("            for i in range(x.shape[0]):")
+    L.append("                pos[nrec, i, 0] = x[i, 0]")
+    L.append("                pos[nrec, i, 1] = x[i, 1]")
+    L.append("            ens[nrec, 0] = kinetic_energy(mass, v)")
+    L.append("            for i in range(energy.shape[0]):")
+    L.append("                ens[nrec, i + 1] = energy[i]")
+    L.append("            rec_steps[nrec] = step")
+    L.append("            nrec += 1")
+    L.append("    return status, step, nrec")
+    L.append("")
     return "\n".join(L)
 
 
@@ -534,7 +608,7 @@ def _fingerprint(refs):
     import dynamics
 
     pkg = os.path.dirname(dynamics.__file__)
-    for f in ("bending.py", "constraints.py", "effects.py"):
+    for f in ("bending.py", "constraints.py", "effects.py", "rod.py"):
         files.add(os.path.join(pkg, f))
     for _, mod, _ in refs:
         f = getattr(sys.modules[mod], "__file__", None)
@@ -692,8 +766,9 @@ def _schedule(frames, t_end, dt, ev):
 def _result(times, pos, ens, force_names, v, n, status_name, status, msg, step, t_final, diag,
             wall, compile_time, dt, fired):
     """The :class:`SimulationResult` of a run (``diag`` in the steppers' common layout)."""
-    if times:
-        E = np.array(ens)
+    # lists of per-frame values, or arrays with one row per frame
+    if len(times):
+        E = np.asarray(ens)
         energies = {"kinetic": E[:, 0]}
         for k, nm in enumerate(force_names):
             energies[nm] = E[:, k + 1]
@@ -702,7 +777,7 @@ def _result(times, pos, ens, force_names, v, n, status_name, status, msg, step, 
         energies = {k: np.zeros(0) for k in ["kinetic", *force_names, "total"]}
     return SimulationResult(
         times=np.array(times),
-        positions=np.array(pos).reshape(len(pos), n, 2),
+        positions=np.asarray(pos).reshape(len(pos), n, 2),
         velocities=v.copy(),
         energies=energies,
         status=status_name,
@@ -769,6 +844,10 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
             "or fewer edges (dt_max grows as h**2)."
         )
 
+    n_total, stops, fset = _schedule(frames, t_end, dt, ev)
+    stops = np.array(stops, dtype=np.int64)
+    record = np.array([k in fset for k in stops.tolist()], dtype=np.bool_)
+
     # compile (or load) the specialised stepper
     tc = time.perf_counter()
     mod = compile_stepper(effects)
@@ -784,57 +863,68 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
     winv0 = np.empty((n, 2))
     winv0[:, 0] = 1.0 / mass
     winv0[:, 1] = 1.0 / mass
-    wn = np.zeros((7, n, 2))
-    we = np.zeros((4, n - 1))
+    A = np.zeros((7, n, 2))
+    cw = new_work(n - 1)
+    lam = np.zeros(n + 1)
+    bw = np.zeros((BENDING_WORK_ROWS, n))
     energy = np.zeros(1 + n_forces)
     diag = np.zeros(8)
     rest_arr = np.zeros(3)
     if rest is not None:
         rest_arr[0] = rest.kinetic_energy
         rest_arr[1] = rest.duration
-    mod.prepare(x, v, t0, edge_len, winv0, wn, we, *params)
-    mod.run(x, v, t0, dt, 0, edge_len, mass, winv0, rod.B, wn, we, energy, diag,
-            rest_arr, *params)
+    work = (edge_len, mass, winv0, rod.B, A, cw, lam, bw, energy, diag, rest_arr)
+    mod.prepare(x, v, t0, edge_len, winv0, A, cw, lam, *params)
+    mod.run(x, v, t0, dt, 0, *work, *params)
+
+    # frames are written by the compiled loop (one row per frame, one spare for the final
+    # state of a run that stops at rest)
+    pos = np.empty((int(record.sum()) + 1, n, 2))
+    ens = np.empty((pos.shape[0], 1 + energy.size))
+    rec_steps = np.empty(pos.shape[0], dtype=np.int64)
+    mod.run_frames(x, v, t0, dt, 0, stops[:0], record[:0], pos, ens, rec_steps, 0, *work,
+                   *params)
     compile_time = time.perf_counter() - tc
 
-    n_total, stops, fset = _schedule(frames, t_end, dt, ev)
-
-    times, pos, ens, fired = [], [], [], []
-
-    def record(step):
-        times.append(t0 + step * dt)
-        pos.append(x.copy())
-        ke = 0.5 * float(np.sum(mass[:, None] * v * v))
-        ens.append(np.concatenate(([ke], energy)))
-
+    fired = []
     step = 0
     status = 0
+    nrec = 0
     events_left = list(ev)
     tw = time.perf_counter()
-    for stop in stops:
-        if stop > step:
-            status, done = mod.run(x, v, t0 + step * dt, dt, stop - step, edge_len, mass,
-                                   winv0, rod.B, wn, we, energy, diag, rest_arr, *params)
-            step += done
-            if status != 0:
-                break
-        if step in fset:
-            record(step)
+    i = 0
+    while i < stops.size:
+        # all the stops up to the next event in one compiled call
+        j = stops.size - 1
+        if events_left:
+            j = min(j, i + int(np.searchsorted(stops[i:], events_left[0][0])))
+        status, step, nrec = mod.run_frames(x, v, t0, dt, step, stops[i:j + 1],
+                                            record[i:j + 1], pos, ens, rec_steps, nrec, *work,
+                                            *params)
+        if status != 0:
+            break
+        fired_now = False
         while events_left and events_left[0][0] <= step:
-            _, eff, j, val = events_left.pop(0)
-            eff.params[j] = val
-            fired.append((t0 + step * dt, eff.name, j, val))
-            # re-evaluate forces and energies with the new parameter
-            mod.run(x, v, t0 + step * dt, dt, 0, edge_len, mass, winv0, rod.B, wn, we,
-                    energy, diag, rest_arr, *params)
+            _, eff, k, val = events_left.pop(0)
+            eff.params[k] = val
+            fired.append((t0 + step * dt, eff.name, k, val))
+            fired_now = True
+        if fired_now:
+            # re-evaluate forces and energies with the new parameters
+            mod.run(x, v, t0 + step * dt, dt, 0, *work, *params)
+        i = j + 1
     wall = time.perf_counter() - tw
 
     t_final = t0 + step * dt
     name, msg = _STATUS[status]
     if status == 1:
         msg = msg.format(thr=rest.kinetic_energy, dur=rest.duration) + f" at t = {t_final:g}"
-        if not times or times[-1] != t_final:
-            record(step)
+        if nrec == 0 or rec_steps[nrec - 1] != step:
+            pos[nrec] = x
+            ens[nrec, 0] = kinetic_energy(mass, v)
+            ens[nrec, 1:] = energy
+            rec_steps[nrec] = step
+            nrec += 1
     elif status == 2:
         msg = (f"{msg} at t = {t_final + dt:g} (step {step + 1}): relative edge-length "
                f"residual {diag[5]:.3g} at edge {int(diag[4])} after the iteration cap, even "
@@ -850,5 +940,6 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
     if diag[6] and status != 2:
         msg += (f"; {int(diag[6])} rejected step(s) retried with up to "
                 f"{2 ** int(diag[7])} substeps (fast local motion: a smaller dt avoids this)")
-    return _result(times, pos, ens, force_names, v, n, name, status, msg, step, t_final, diag,
-                   wall, compile_time, dt, fired)
+    times = [t0 + k * dt for k in rec_steps[:nrec].tolist()]
+    return _result(times, pos[:nrec], ens[:nrec], force_names, v, n, name, status, msg, step,
+                   t_final, diag, wall, compile_time, dt, fired)
