@@ -210,9 +210,10 @@ CONTACT_PULL_TOL = 1e-10
 
 #: The capacitance matrix ``I + Vt A^{-1} L`` of the Woodbury solve (the low-rank part of
 #: the force stiffness, :func:`lowrank_setup`) is treated as singular when a pivot falls
-#: below this fraction of its largest entry: its condition number then bounds the accuracy
-#: of the Newton correction by ~1e-4 at best, worse than leaving the low-rank part out
-#: (the simplified Newton of before, which converges linearly).
+#: below this fraction of its largest entry (or of 1, the scale of ``I``): a condition
+#: number above 1e12 leaves the Newton correction ~1e-4 accurate at best, and the band
+#: matrix alone (simplified Newton, linear convergence) is the safer choice.  Never
+#: happened in the benchmarks (``stiffness_dropped`` = 0).
 SMALL_PIVOT = 1e-12
 
 #: The low-rank part of the force stiffness enters the Newton matrix only when the
@@ -226,8 +227,10 @@ LOWRANK_MIN_RATE = 0.1
 
 #: Most nodes whose held status may differ from that of the factored Newton matrix: their
 #: rows are switched by a low-rank update (:func:`contact_lowrank`, one column each); more,
-#: and the matrix is refactored.  fig3-strip changes 1-3 nodes a step when the strip lands
-#: or lifts (measured).
+#: and the matrix is refactored.  Columns the drop's stiffness leaves unused are added.
+#: Measured on fig3-strip (damped, 4x and 16x the explicit bound): 4, 8, 16 and 32 ran
+#: within timing noise of each other (0.66-0.55 factorisations a step at 4x: more columns
+#: save factorisations, and cost O(N) each in every solve).
 CONTACT_RANK = 8
 
 #: (module, kernel) of the one constraint effect the implicit stepper handles.
@@ -301,9 +304,13 @@ def band_lu_nopivot(ab, kl, ku, tiny):
     -----
     The KKT matrices here have their multipliers ordered after the nodes they join, so
     every leading block is itself a nonsingular KKT matrix and elimination in order is
-    well defined; measured: partial pivoting never swapped a row on them.  Without the
-    pivot search, the swaps and the ``kl`` extra fill-in columns the elimination costs
-    N kl ku instead of N kl (kl + ku) (100 edges: 18 us instead of 60 us).
+    well defined; measured: partial pivoting never swapped a row on them, nor was this
+    fallback ever taken, also with the band part of the drop's stiffness (indefinite,
+    ``-gamma kappa`` times the shoelace Hessian: fig3-strip at 4-16x and supp-fig5 at
+    16-128x the explicit bound; the stiff parts, ``1/d`` and the closing chord, are in the
+    low-rank part, outside the factored band).  Without the pivot search, the swaps and
+    the ``kl`` extra fill-in columns the elimination costs N kl ku instead of
+    N kl (kl + ku) (100 edges: 18 us instead of 60 us).
     """
     N = ab.shape[0]
     for k in range(N):
