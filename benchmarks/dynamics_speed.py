@@ -310,6 +310,10 @@ def _bench_impacts_against(repeat, baseline, inner=2):
         for r in range(repeat):
             for label in (trees if r % 2 == 0 else list(trees)[::-1]):
                 env = dict(os.environ, PYTHONPATH=trees[label])
+                if label == baseline:
+                    # its generated steppers are keyed by the exported files' times: keep
+                    # them out of the user's cache
+                    env["DYNAMICS_CACHE_DIR"] = os.path.join(tmp, "_stepper_cache")
                 out = subprocess.run([sys.executable, "-c", IMPACT_SNIPPET, trees[label], cases,
                                       str(inner)], env=env, cwd=trees[label],
                                      capture_output=True, text=True, check=True).stdout
