@@ -22,7 +22,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from elastocap.strip.discrete import DiscreteStrip, Equilibrium, solve_equilibrium
+from elastocap.strip.discrete import (
+    DiscreteStrip,
+    Equilibrium,
+    solve_equilibrium,
+    stability,
+)
 from elastocap.strip.mep import descend_from_saddle, is_encapsulated
 
 __all__ = ["BarrierGraph", "barrier_graph", "equilibria_at", "lowest_barriers"]
@@ -56,7 +61,12 @@ def equilibria_at(bs, delta: float) -> list[tuple[int, Equilibrium]]:
                 eq = solve_equilibrium(strip, seg.u[j], active=seg.active, tol=1e-11)
                 if eq.success and not any(np.max(np.abs(eq.u - e.u)) < _SAME
                                           for _, e in found):
-                    found.append((int(seg.index[j]), eq))
+                    # the index of the solved state itself: Newton from a point next to a
+                    # fold can land on the other side of it (measured at x = 4, Delta =
+                    # 1.1: the saddle, found from a point of the open branch); with a
+                    # contact of zero reaction the fixed-set index of the segment is kept
+                    idx, weak = stability(strip, eq)
+                    found.append((int(seg.index[j]) if weak else idx, eq))
     return sorted(found, key=lambda t: t[1].energy)
 
 

@@ -37,7 +37,8 @@ def test_implicit_with_a_ground_takes_a_capped_step_and_bad_names_are_refused():
 
     st = impact_settings(load_scene("fig3-strip", {"numerics.integrator": "implicit"}))
     assert st["integrator"] == "implicit"
-    assert abs(st["dt"] - 4.0 * st["dt_max"]) < 1e-15  # the capillary stiffness caps it
+    # capped by the unresolved bending waves and the contact (elastocap.impact)
+    assert abs(st["dt"] - 8.0 * st["dt_max"]) < 1e-15
     allowed = r"^numerics.integrator: got .euler.; expected one of rattle, implicit"
     with pytest.raises(SceneError, match=allowed):
         load_scene("supp-fig5", {"numerics.integrator": "euler"})
@@ -50,7 +51,8 @@ def test_implicit_with_a_ground_matches_rattle_on_fig3_strip():
     ref = run_impact(load_scene("fig3-strip", ov))
     assert imp.outcome == ref.outcome == "encapsulated"
     assert imp.status == ref.status == "at_rest"
-    # measured: 1e-4 in M and 1e-3 in x(L) at dt = 0.0094 (4x the explicit bound)
+    # measured: <= 1.8e-3 in M and 1.1e-2 in x(L) at 8x the explicit bound on the Fig 3d
+    # line x = 2 ... 3 (1e-4 and 1e-3 at 4x)
     assert abs(imp.final_measure - ref.final_measure) < 5e-3
     assert abs(imp.end_position - ref.end_position) < 2e-2
     assert imp.energy_rise < 1e-3
