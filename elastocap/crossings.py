@@ -19,6 +19,7 @@ import numba
 import numpy as np
 
 from elastocap.drop import _locate, capillary_energy_and_gradient
+from elastocap.statics.shape import segments_cross
 
 __all__ = ["INTERFACE_POINTS", "first_crossing_frames", "turning_measures"]
 
@@ -127,14 +128,8 @@ def _any_crossing(a, b, same, skip_a0, skip_a1, box, bbox):
                 if box[j, 0] > x1 or box[j, 1] < x0 or box[j, 2] > z1 or box[j, 3] < z0:
                     continue
                 bx, bz = b[j, 0], b[j, 1]
-                sx, sz = b[j + 1, 0] - bx, b[j + 1, 1] - bz
-                den = rx * sz - rz * sx
-                if den == 0.0:
-                    continue
-                qx, qz = bx - ax, bz - az
-                t = (qx * sz - qz * sx) / den
-                u = (qx * rz - qz * rx) / den
-                if 1e-9 < t < 1.0 - 1e-9 and 1e-9 < u < 1.0 - 1e-9:
+                if segments_cross(ax, az, rx, rz, bx, bz, b[j + 1, 0] - bx,
+                                  b[j + 1, 1] - bz):
                     return True
     return False
 

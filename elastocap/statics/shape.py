@@ -97,6 +97,21 @@ def full_shape(problem, u, p=None, n_wet=_N_WET_SAMPLES):
 
 
 @numba.njit(cache=True)
+def segments_cross(ax, az, rx, rz, bx, bz, sx, sz):
+    """Do the segments a + t r and b + u s (0 < t, u < 1) cross properly?
+
+    Touching end points (t or u within 1e-9 of 0 or 1) and parallel segments do not count.
+    """
+    den = rx * sz - rz * sx
+    if den == 0.0:
+        return False
+    qx, qz = bx - ax, bz - az
+    t = (qx * sz - qz * sx) / den
+    u = (qx * rz - qz * rx) / den
+    return 1e-9 < t < 1.0 - 1e-9 and 1e-9 < u < 1.0 - 1e-9
+
+
+@numba.njit(cache=True)
 def count_crossings(a, b, same, skip_a0, skip_a1):
     """Proper crossings of the segments of polyline a (m, 2) with those of b (k, 2).
 
@@ -111,14 +126,7 @@ def count_crossings(a, b, same, skip_a0, skip_a1):
         j0 = i + 2 if same else 0
         for j in range(j0, b.shape[0] - 1):
             bx, bz = b[j, 0], b[j, 1]
-            sx, sz = b[j + 1, 0] - bx, b[j + 1, 1] - bz
-            den = rx * sz - rz * sx
-            if den == 0.0:
-                continue
-            qx, qz = bx - ax, bz - az
-            t = (qx * sz - qz * sx) / den
-            u = (qx * rz - qz * rx) / den
-            if 1e-9 < t < 1.0 - 1e-9 and 1e-9 < u < 1.0 - 1e-9:
+            if segments_cross(ax, az, rx, rz, bx, bz, b[j + 1, 0] - bx, b[j + 1, 1] - bz):
                 count += 1
     return count
 

@@ -77,8 +77,8 @@ _SAME = 1e-7
 NOT_HANDLED = (
     "rod-rod contact (the strip may cross itself: such states are marked inadmissible, "
     "not excluded); branches not reached from the seeds (deposition and fold at "
-    f"Delta = {', '.join(f'{d:g}' for d in SEED_DELTAS)}); only drop.wetted_length (other parameters use the "
-    "single-topology spectral solver, elastocap.strip.branches)"
+    f"Delta = {', '.join(f'{d:g}' for d in SEED_DELTAS)}); only drop.wetted_length "
+    "(other parameters use the single-topology spectral solver, elastocap.strip.branches)"
 )
 
 

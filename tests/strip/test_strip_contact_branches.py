@@ -16,7 +16,6 @@ import pytest
 from continuation import ContinuationSettings
 from elastocap.cli import main
 from elastocap.scene import SceneError, load_scene
-from elastocap.strip._blas import blas_threads
 from elastocap.strip.contact_branches import trace_contact_branches
 from elastocap.strip.discrete import DiscreteStrip, discrete_strip_for, solve_equilibrium
 from elastocap.strip.discrete_branches import _CHORD_STOP, _DEFAULTS, trace_discrete_branch
@@ -25,11 +24,6 @@ from elastocap.strip.mep import barrier, open_state, wrapped_state
 L, A, GAMMA = 14.3, 0.36, 40.0
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_blas_thread():
-    """One OpenBLAS thread for the module (see elastocap.strip._blas for the measurement)."""
-    with blas_threads(1):
-        yield
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from elastocap.strip._blas import blas_threads
 from elastocap.strip.discrete import DiscreteStrip, solve_equilibrium
 from elastocap.strip.discrete_branches import trace_discrete_branch
 from elastocap.strip.mep import continue_in_delta, open_state
@@ -15,11 +14,6 @@ from elastocap.strip.windows import branch_window
 L, A, GAMMA = 14.3, 0.36, 40.0
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_blas_thread():
-    """One OpenBLAS thread for the module (see elastocap.strip._blas for the measurement)."""
-    with blas_threads(1):
-        yield
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from elastocap.strip._blas import blas_threads  # noqa: E402
 from elastocap.strip.discrete import (
     DiscreteStrip,
     minimize_energy,
@@ -25,13 +24,6 @@ from elastocap.strip.mep import (
 L, A, GAMMA = 14.3, 0.36, 40.0
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_blas_thread():
-    """Small dense LAPACK calls (100 x 100) ran 19x slower with two OpenBLAS threads on the
-    shared 2-core machine (barrier at n = 60: 33 s against 1.8 s); pin one thread for this
-    module and restore the previous count afterwards (a no-op without OpenBLAS)."""
-    with blas_threads(1):
-        yield
 
 
 def strip(n, x=3.0, delta=1.1):

@@ -21,11 +21,6 @@ L, A, GAMMA = 14.3, 0.36, 40.0
 BISECT = 1e-3
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_blas_thread():
-    """One OpenBLAS thread for the module (see elastocap.strip._blas for the measurement)."""
-    with blas_threads(1):
-        yield
 
 
 def test_blas_threads_restores_the_count():
