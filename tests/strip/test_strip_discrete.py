@@ -9,9 +9,6 @@ import math
 import numpy as np
 import pytest
 
-# one OpenBLAS thread for this module (see the fixture's docstring)
-from test_strip_mep import one_blas_thread  # noqa: F401, E402
-
 from dynamics.bending import bending_energy, bending_gradient
 from elastocap.capillary import capillary_kernel
 from elastocap.drop import capillary_energy_and_gradient
