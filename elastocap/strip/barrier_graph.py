@@ -22,12 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from elastocap.strip.discrete import (
-    DiscreteStrip,
-    Equilibrium,
-    solve_equilibrium,
-    stability,
-)
+from elastocap.strip.contact_branches import solved_crossings
+from elastocap.strip.discrete import DiscreteStrip, Equilibrium, stability
 from elastocap.strip.mep import descend_from_saddle, is_encapsulated
 
 __all__ = ["BarrierGraph", "barrier_graph", "equilibria_at", "lowest_barriers"]
@@ -51,22 +47,14 @@ def equilibria_at(bs, delta: float) -> list[tuple[int, Equilibrium]]:
 
     strip = discrete_strip_for(bs.scene, bs.n).with_(delta=float(delta))
     found: list[tuple[int, Equilibrium]] = []
-    for br in bs.branches:
-        for seg in br.segments:
-            d = seg.delta
-            for i in range(d.size - 1):
-                if d[i] == d[i + 1] or (d[i] - delta) * (d[i + 1] - delta) > 0.0:
-                    continue
-                j = i if abs(d[i] - delta) <= abs(d[i + 1] - delta) else i + 1
-                eq = solve_equilibrium(strip, seg.u[j], active=seg.active, tol=1e-11)
-                if eq.success and not any(np.max(np.abs(eq.u - e.u)) < _SAME
-                                          for _, e in found):
-                    # the index of the solved state itself: Newton from a point next to a
-                    # fold can land on the other side of it (measured at x = 4, Delta =
-                    # 1.1: the saddle, found from a point of the open branch); with a
-                    # contact of zero reaction the fixed-set index of the segment is kept
-                    idx, weak = stability(strip, eq)
-                    found.append((int(seg.index[j]) if weak else idx, eq))
+    for seg, j, eq in solved_crossings(strip, bs.branches):
+        if eq.success and not any(np.max(np.abs(eq.u - e.u)) < _SAME for _, e in found):
+            # the index of the solved state itself: Newton from a point next to a fold can
+            # land on the other side of it (measured at x = 4, Delta = 1.1: the saddle,
+            # found from a point of the open branch); with a contact of zero reaction the
+            # fixed-set index of the segment is kept
+            idx, weak = stability(strip, eq)
+            found.append((int(seg.index[j]) if weak else idx, eq))
     return sorted(found, key=lambda t: t[1].energy)
 
 

@@ -52,8 +52,8 @@ from elastocap.strip.discrete import DiscreteStrip, discrete_strip_for, solve_eq
 from elastocap.strip.discrete_branches import _DEFAULTS, DiscreteBranch, trace_discrete_branch
 from elastocap.strip.mep import is_encapsulated, open_state, wrapped_state
 
-__all__ = ["NOT_HANDLED", "ContactBranchSet", "point_measures", "strip_and_interface",
-           "trace_contact_branches"]
+__all__ = ["NOT_HANDLED", "ContactBranchSet", "point_measures", "solved_crossings",
+           "strip_and_interface", "trace_contact_branches"]
 
 #: Seeds of each kind at these Deltas (length) inside the range (its midpoint if none):
 #: fixed, so that the branches found do not depend on where the range starts. With 4
@@ -294,22 +294,30 @@ def _check(scene: Scene, parameter: str, prange):
     return lo, hi
 
 
+def solved_crossings(strip: DiscreteStrip, branches):
+    """Each place a traced segment crosses the strip's Delta, solved there exactly.
+
+    Yields (segment, j, Equilibrium): Newton at the segment's contact set from its traced
+    point j nearest the crossing (converged or not: check ``success``).
+    """
+    d0 = strip.delta
+    for br in branches:
+        for seg in br.segments:
+            d = seg.delta
+            if d.size < 2 or not d.min() <= d0 <= d.max():
+                continue
+            for i in range(d.size - 1):
+                if d[i] == d[i + 1] or (d[i] - d0) * (d[i + 1] - d0) > 0.0:
+                    continue
+                j = i if abs(d[i] - d0) <= abs(d[i + 1] - d0) else i + 1
+                yield seg, j, solve_equilibrium(strip, seg.u[j], active=seg.active,
+                                                tol=1e-11, max_iter=30)
+
+
 def _on_branch(strip: DiscreteStrip, u_seed, br: DiscreteBranch) -> bool:
     """Does the state ``u_seed`` at the strip's Delta lie on the traced branch ``br``?"""
-    d0 = strip.delta
-    for seg in br.segments:
-        if seg.delta.size < 2 or not seg.delta.min() <= d0 <= seg.delta.max():
-            continue
-        # every stretch of the segment monotone in Delta that covers d0
-        for i in range(seg.delta.size - 1):
-            a, b = seg.delta[i], seg.delta[i + 1]
-            if min(a, b) <= d0 <= max(a, b):
-                j = i if abs(a - d0) <= abs(b - d0) else i + 1
-                eq = solve_equilibrium(strip, seg.u[j], active=seg.active, tol=1e-11,
-                                       max_iter=20)
-                if eq.success and float(np.max(np.abs(eq.u - u_seed))) <= _SAME:
-                    return True
-    return False
+    return any(eq.success and float(np.max(np.abs(eq.u - u_seed))) <= _SAME
+               for _seg, _j, eq in solved_crossings(strip, [br]))
 
 
 def _branch_points(strip: DiscreteStrip, br: DiscreteBranch) -> dict:
