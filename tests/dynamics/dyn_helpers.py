@@ -16,3 +16,24 @@ def rod_from_angles(theta, h, origin=(0.0, 0.0), mu=1.0, B=1.0, v=None):
     if v is None:
         v = np.zeros_like(x)
     return dynamics.Rod(x, v, np.full(theta.size, h), mu, B)
+
+
+def band_to_dense(ab, kl, ku):
+    """Dense (N, N) matrix of LAPACK-style band storage ``ab`` (N, 2 kl + ku + 1), row r
+    holding A[r, c] at column c - r + kl (as dynamics.implicit stores its KKT matrix)."""
+    N = ab.shape[0]
+    A = np.zeros((N, N))
+    for r in range(N):
+        for c in range(max(0, r - kl), min(N, r + ku + 1)):
+            A[r, c] = ab[r, c - r + kl]
+    return A
+
+
+def dense_to_band(A, kl, ku):
+    """Inverse of :func:`band_to_dense` (entries outside the band are dropped)."""
+    N = A.shape[0]
+    ab = np.zeros((N, 2 * kl + ku + 1))
+    for r in range(N):
+        for c in range(max(0, r - kl), min(N, r + ku + 1)):
+            ab[r, c - r + kl] = A[r, c]
+    return ab

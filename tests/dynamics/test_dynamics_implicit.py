@@ -3,7 +3,7 @@ in dt, exact constraints, energy far above the explicit bound, agreement with RA
 
 import numpy as np
 import pytest
-from dyn_helpers import rod_from_angles
+from dyn_helpers import band_to_dense, dense_to_band, rod_from_angles
 
 from dynamics import Clamp, Damping, Ground, Rod, euler_bernoulli_omega, simulate, stable_dt
 from dynamics.bending import bending_force_add
@@ -27,21 +27,11 @@ from dynamics.stepper import RestCriterion, SimulationResult
 
 
 def _dense(ab, kl=KL, ku=KL):
-    N = ab.shape[0]
-    A = np.zeros((N, N))
-    for r in range(N):
-        for c in range(max(0, r - kl), min(N, r + ku + 1)):
-            A[r, c] = ab[r, c - r + kl]
-    return A
+    return band_to_dense(ab, kl, ku)
 
 
 def _band(A, kl=KL, ku=KL):
-    N = A.shape[0]
-    ab = np.zeros((N, 2 * kl + ku + 1))
-    for r in range(N):
-        for c in range(max(0, r - kl), min(N, r + ku + 1)):
-            ab[r, c - r + kl] = A[r, c]
-    return ab
+    return dense_to_band(A, kl, ku)
 
 
 def test_band_lu_solves_like_dense_with_and_without_pivoting():

@@ -4,6 +4,7 @@ Newton matrix against finite differences, and what it does to the Newton iterati
 
 import numpy as np
 import pytest
+from dyn_helpers import band_to_dense, dense_to_band
 from dyn_stiff_kernels import BadTether, NodeSpring, Tether
 
 from dynamics import Damping, Gravity, Rod, stable_dt
@@ -142,21 +143,11 @@ def test_degenerate_cap_gives_no_stiffness():
 
 
 def _dense(ab, kl=KL, ku=KL):
-    N = ab.shape[0]
-    A = np.zeros((N, N))
-    for r in range(N):
-        for c in range(max(0, r - kl), min(N, r + ku + 1)):
-            A[r, c] = ab[r, c - r + kl]
-    return A
+    return band_to_dense(ab, kl, ku)
 
 
 def _band(A, kl=KL, ku=KL):
-    N = A.shape[0]
-    ab = np.zeros((N, 2 * kl + ku + 1))
-    for r in range(N):
-        for c in range(max(0, r - kl), min(N, r + ku + 1)):
-            ab[r, c - r + kl] = A[r, c]
-    return ab
+    return dense_to_band(A, kl, ku)
 
 
 @pytest.mark.parametrize("pivoting", [False, True])
