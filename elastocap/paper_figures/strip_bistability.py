@@ -158,18 +158,41 @@ def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[P
     fig3d : str or Path, optional
         The dynamic phase diagram's JSON; default ``docs/img/fig3d.json`` of the repository.
     """
+    scene = load_scene("fig3-strip")
+    xs, ns = (FAST_X, FAST_N) if fast else (FULL_X, FULL_N)
+    rows = compute(scene, xs, ns)
+    return _write(Path(out_dir), scene, rows, fast, xs, ns, fig3d)
+
+
+def redraw(out_dir, fig3d: str | Path | None = None) -> list[Path]:
+    """Redraw the figure over a new dynamic diagram without recomputing the statics.
+
+    The static rows and their settings are read back from ``out_dir``'s
+    ``strip_bistability.json`` (written by :func:`main`, which the statics alone make: the
+    dynamics do not enter them); the PNG and the JSON are rewritten with ``fig3d``.
+    ``python3 -m elastocap.paper_figures.strip_bistability --redraw docs/img``.
+    """
+    out = Path(out_dir)
+    old = json.loads((out / "strip_bistability.json").read_text())
+    made = old["made_by"]
+    scene = load_scene("fig3-strip")
+    if made["scene"] != scene.data:
+        raise ValueError(
+            f"{out / 'strip_bistability.json'} was made for another fig3-strip scene "
+            f"({made['scene']}); recompute it: elastocap figures --only strip-bistability")
+    return _write(out, scene, old["rows"], made["fast"], tuple(made["x"]),
+                  tuple(made["n"]), fig3d)
+
+
+def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
+    """The PNG and the JSON of :func:`main` from computed ``rows``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     from elastocap.sweep import plot_phase_diagram
 
-    out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    scene = load_scene("fig3-strip")
     sp = scene.spreading
-    xs, ns = (FAST_X, FAST_N) if fast else (FULL_X, FULL_N)
-    rows = compute(scene, xs, ns)
-
     path = Path(fig3d) if fig3d is not None else _default_fig3d()
     dyn = json.loads(path.read_text()) if path.is_file() else None
     what = (f"static window (discrete strip, all contact topologies, n = {ns[0]} and "
@@ -227,3 +250,14 @@ def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[P
     js.write_text(json.dumps(record(data, scene, fast=fast, x=list(xs), n=list(ns),
                                     d_range=[D_LO, D_HI]), indent=1))
     return [png, js]
+
+
+if __name__ == "__main__":
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--redraw", metavar="DIR", required=True,
+                    help="redraw DIR/strip_bistability.png over the current dynamic diagram")
+    ap.add_argument("--fig3d", default=None, help="the dynamic diagram's JSON")
+    a = ap.parse_args()
+    print(", ".join(str(p) for p in redraw(a.redraw, a.fig3d)))

@@ -131,3 +131,23 @@ def test_figure_without_dynamic_diagram_says_so(fast_figure, tmp_path, monkeypat
     d = json.loads(js.read_text())
     assert d["dynamic_diagram"] is None and png.stat().st_size > 1000
     assert d["unsettled"] == [] and d["rows"] == rows
+
+
+def test_redraw_keeps_the_statics_and_swaps_the_dynamic_diagram(fast_figure, tmp_path):
+    import shutil
+
+    from elastocap.paper_figures import strip_bistability as sb
+
+    shutil.copy(fast_figure[1], tmp_path / "strip_bistability.json")
+    before = json.loads(fast_figure[1].read_text())
+    dyn = tmp_path / "dyn.json"
+    dyn.write_text(json.dumps({"runs": [], "boundary": []}))
+    png, js = sb.redraw(tmp_path, fig3d=dyn)
+    after = json.loads(js.read_text())
+    assert after["rows"] == before["rows"] and after["made_by"] == before["made_by"]
+    assert after["dynamic_diagram"] == str(dyn) and png.stat().st_size > 1000
+    # statics made for another scene are refused, not silently redrawn
+    after["made_by"]["scene"]["drop"]["area"] = 0.5
+    js.write_text(json.dumps(after))
+    with pytest.raises(ValueError, match="another fig3-strip scene"):
+        sb.redraw(tmp_path, fig3d=dyn)
