@@ -29,6 +29,7 @@ __all__ = [
     "bending_energy",
     "bending_gradient",
     "bending_force_add",
+    "bending_force_add_flat",
     "discrete_curvature",
     "BENDING_WORK_ROWS",
 ]
@@ -139,14 +140,21 @@ def bending_force_add(x, edge_len, B, out_force, work=None):
     a division by zero (an edge folded back onto its neighbour) gives inf/nan, which the
     stepper reports as a non-finite state, instead of raising.
     """
-    n = x.shape[0]
+    if work is None:
+        work = np.empty((BENDING_WORK_ROWS, x.shape[0]))
+    return bending_force_add_flat(x.reshape(x.size), edge_len, B,
+                                  out_force.reshape(out_force.size), work)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def bending_force_add_flat(xf, edge_len, B, ff, work):
+    """:func:`bending_force_add` on flat views ``xf``, ``ff`` (``a.reshape(a.size)``) of
+    the C-contiguous (n, 2) positions and forces, with its work array (the stepper keeps
+    such views: a reshape per call costs a C call and reference counting)."""
+    n = xf.shape[0] // 2
     E = 0.0
     if n < 3:
         return E
-    if work is None:
-        work = np.empty((BENDING_WORK_ROWS, n))
-    xf = x.reshape(x.size)
-    ff = out_force.reshape(out_force.size)
     # pass 1, per edge i: vector, length, inverse length
     for i in range(n - 1):
         bx = xf[2 * i + 2] - xf[2 * i]

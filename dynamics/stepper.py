@@ -378,17 +378,18 @@ def _generate_source(refs):
     L.append("# Do not edit; the file name is a hash of this text and of the kernels' sources.")
     L.append("import numba")
     L.append("import numpy as np")
-    L.append("from dynamics.bending import bending_force_add")
-    L.append("from dynamics.constraints import constraint_error, shake, velocity_projection")
+    L.append("from dynamics.bending import bending_force_add_flat")
+    L.append("from dynamics.constraints import (constraint_error, shake, shake_flat,"
+             " velocity_projection, velocity_projection_flat)")
     L.append("from dynamics.rod import kinetic_energy")
     L += imports
     L.append("")
     L.append("")
     L.append("@numba.njit(cache=True)")
-    L.append(f"def _forces(x, v, t, edge_len, mass, B, F, Ff, energy, bw{fargs}):")
+    L.append(f"def _forces(x, xf, v, t, edge_len, mass, B, F, Ff, energy, bw{fargs}):")
     L.append("    for j in range(Ff.shape[0]):")
     L.append("        Ff[j] = 0.0")
-    L.append("    energy[0] = bending_force_add(x, edge_len, B, F, bw)")
+    L.append("    energy[0] = bending_force_add_flat(xf, edge_len, B, Ff, bw)")
     for k, (alias, p) in enumerate(forces):
         L.append(f"    energy[{k + 1}] = {alias}(x, v, t, {p}, edge_len, mass, F)")
     L.append("")
@@ -427,7 +428,8 @@ def _generate_source(refs):
         L.append(f"    {alias}(xn, vh, t1, {p}, edge_len, winv, 0)")
     # SHAKE starts from the drift moved by the previous step's multipliers (a predictor of
     # the constraint forces); the root is the same, only the iteration count changes
-    L.append(f"    err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, True, {final})")
+    L.append(f"    err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, True,"
+             f" {final})")
     L.append("    if it < 0:")
     L.append("        # the predictor can mislead after an abrupt change (an impact): retry from")
     L.append("        # the plain drift before rejecting the step")
@@ -437,7 +439,8 @@ def _generate_source(refs):
     for alias, p in cons:
         L.append(f"        {alias}(xn, vh, t1, {p}, edge_len, winv, 0)")
     L.append("        lam[:] = 0.0")
-    L.append(f"        err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, False, {final})")
+    L.append(f"        err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam,"
+             f" False, {final})")
     L.append("    if it == 0:")
     L.append("        # the prediction needed no update: its multipliers may be stale (a rod at")
     L.append("        # rest would keep being moved by them at round-off level); start the")
@@ -464,7 +467,8 @@ def _generate_source(refs):
         L.append("            held -= winvf[j] == 0.0")
         L.append("        if held == 0:")
         L.append("            break")
-        L.append("        err, it2, edge, err1 = shake(x, xn, winv, edge_len, cw, lam, False, 0.0)")
+        L.append("        err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam,"
+             " False, 0.0)")
         L.append("        if it2 < 0:")
         L.append("            diag[4] = edge")
         L.append("            diag[5] = err")
@@ -477,12 +481,12 @@ def _generate_source(refs):
     L.append("    for j in range(nc):")
     L.append("        vhf[j] = (xnf[j] - xf[j]) * inv_dt")
     L.append("        xf[j] = xnf[j]")
-    L.append(f"    _forces(x, vh, t1, edge_len, mass, B, F, Ff, energy, bw{fargs})")
+    L.append(f"    _forces(x, xf, vh, t1, edge_len, mass, B, F, Ff, energy, bw{fargs})")
     L.append("    for j in range(nc):")
     L.append("        vf[j] = vhf[j] + half * winvf[j] * Ff[j]")
     for alias, p in cons:
         L.append(f"    {alias}(x, v, t1, {p}, edge_len, winv, 1)")
-    L.append("    velocity_projection(x, v, winv, cw)")
+    L.append("    velocity_projection_flat(xf, vf, winvf, cw)")
     for alias, p in damps:
         L.append(f"    {alias}(x, v, t1 - half, {p}, edge_len, mass, half)")
     L.append("    return 0")
@@ -507,7 +511,7 @@ def _generate_source(refs):
     L.append("    xbf = Af[4]")
     L.append("    vbf = Af[5]")
     L.append("    fbf = Af[6]")
-    L.append(f"    _forces(x, v, t0, edge_len, mass, B, F, Ff, energy, bw{fargs})")
+    L.append(f"    _forces(x, xf, v, t0, edge_len, mass, B, F, Ff, energy, bw{fargs})")
     L.append("    status = 0")
     L.append("    steps = 0")
     L.append("    for s in range(n_steps):")

@@ -15,6 +15,7 @@ from dynamics.constraints import (
     SHAKE_FINAL,
     SHAKE_TOL,
     _eliminate,
+    _eliminate_serial,
     _resolve,
     _row_max,
     _substitute,
@@ -85,10 +86,12 @@ def test_solve_tridiagonal_against_dense():
     np.testing.assert_allclose(A @ y, d, atol=1e-13)
 
 
-@pytest.mark.parametrize("m", [1, 2, 3, 4, 5, 6, 7, 50, 101])
-def test_two_ended_elimination_against_dense(m):
-    """Both halves of the elimination, the junction and the re-solve with kept factors,
-    for even and odd sizes, with identity rows (skipped constraints) among them."""
+@pytest.mark.parametrize("serial", [False, True])
+@pytest.mark.parametrize("m", [1, 2, 3, 4, 5, 6, 7, 16, 17, 50, 101])
+def test_two_ended_elimination_against_dense(m, serial):
+    """Both halves of the elimination (by minors, and the serial fallback), the junction
+    and the re-solve with kept factors, for even and odd sizes, with identity rows
+    (skipped constraints) among them."""
     rng = np.random.default_rng(m)
     a, c = rng.standard_normal(m), rng.standard_normal(m)
     b = 4.0 + rng.random(m)
@@ -104,8 +107,11 @@ def test_two_ended_elimination_against_dense(m):
         work[5, 1:-1] = d
         work[6, 1:-1] = np.abs(d)
         # the second right-hand side reuses the factors kept by the first elimination
-        if first:
-            err, edge = _eliminate(work)
+        if first and serial:
+            err, edge = _eliminate_serial(work)
+        elif first:
+            err, edge, ok = _eliminate(work)
+            assert ok
         else:
             err, edge = _row_max(work, 6)
             _resolve(work)
@@ -113,6 +119,26 @@ def test_two_ended_elimination_against_dense(m):
         _substitute(work)
         np.testing.assert_allclose(work[5, 1:-1], np.linalg.solve(A, d), rtol=0, atol=1e-14)
         assert work[5, 0] == 0.0 and work[5, -1] == 0.0
+
+
+@pytest.mark.parametrize("scale", [1e-40, 1e40])
+def test_elimination_flags_minors_out_of_range(scale):
+    """Pivots far from 1 make the leading minors leave their range within a
+    renormalisation block: flagged, and the serial fallback solves the same rows."""
+    m = 40
+    rng = np.random.default_rng(7)
+    a, c = -rng.random(m), -rng.random(m)
+    a[0] = c[-1] = 0.0
+    b = 2.5 + rng.random(m)
+    d = rng.standard_normal(m)
+    A = np.diag(b) + np.diag(a[1:], -1) + np.diag(c[:-1], 1)
+    work = new_work(m)
+    work[2, 1:-1], work[3, 1:-1], work[4, 1:-1], work[5, 1:-1] = scale * a, scale * b, scale * c, d
+    rows = work.copy()
+    assert not _eliminate(work)[2]
+    _eliminate_serial(rows)
+    _substitute(rows)
+    np.testing.assert_allclose(scale * rows[5, 1:-1], np.linalg.solve(A, d), rtol=0, atol=1e-14)
 
 
 @pytest.mark.parametrize("step", [1e-4, 1e-3, 1e-2])
