@@ -190,8 +190,23 @@ def bending_force_add_flat(xf, edge_len, B, ff, work):
         work[5, i] = s * (-bx * den - c * (az * rab + bz))
         work[6, i] = s * (-az * den - c * (bx * rba + ax))
         work[7, i] = s * (ax * den - c * (bz * rba + az))
-    for i in range(1, n - 1):
-        E += work[8, i]
+    # four partial sums: one running sum is a serial chain of additions (4 cycles each,
+    # 0.2 us at 200 nodes); the result differs from it by round-off
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    i = 1
+    while i + 3 < n - 1:
+        s0 += work[8, i]
+        s1 += work[8, i + 1]
+        s2 += work[8, i + 2]
+        s3 += work[8, i + 3]
+        i += 4
+    while i < n - 1:
+        s0 += work[8, i]
+        i += 1
+    E = (s0 + s1) + (s2 + s3)
     # pass 3, force = -gradient (a = x_i - x_{i-1}, b = x_{i+1} - x_i): node j gets
     # -= gb_{j-1}, -= (ga_j - gb_j), += ga_{j+1}, in this order
     ff[0] += work[4, 1]
