@@ -175,11 +175,26 @@ def voronoi_lengths(edge_len, out):
 def gravity_kernel(x, v, t, params, edge_len, mass, out_force):
     """Uniform gravity ``-m_i g e_z``; ``params = [g]``; returns ``U = sum m_i g z_i``."""
     g = params[0]
-    U = 0.0
-    for i in range(x.shape[0]):
+    n = x.shape[0]
+    for i in range(n):
         out_force[i, 1] -= mass[i] * g
-        U += mass[i] * g * x[i, 1]
-    return U
+    # four partial sums (a running sum is a serial chain of additions: 0.2 us at 200
+    # nodes); the result differs from it by round-off
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    i = 0
+    while i + 3 < n:
+        s0 += mass[i] * x[i, 1]
+        s1 += mass[i + 1] * x[i + 1, 1]
+        s2 += mass[i + 2] * x[i + 2, 1]
+        s3 += mass[i + 3] * x[i + 3, 1]
+        i += 4
+    while i < n:
+        s0 += mass[i] * x[i, 1]
+        i += 1
+    return g * ((s0 + s1) + (s2 + s3))
 
 
 @numba.njit(cache=True)
