@@ -31,9 +31,25 @@ def capillary_kernel(x, v, t, params, edge_len, mass, out_force):
     """
     n = x.shape[0]
     s = np.empty(n)
+    # node arclengths by blocks of four edges: the running sum (the serial chain of
+    # additions, 4 cycles each: 0.2 us at 200 nodes, 2% of a time step) advances once a
+    # block; the result differs from a running sum by round-off
     s[0] = 0.0
-    for i in range(n - 1):
-        s[i + 1] = s[i] + edge_len[i]
+    acc = 0.0
+    i = 0
+    while i + 4 <= n - 1:
+        e01 = edge_len[i] + edge_len[i + 1]
+        e012 = e01 + edge_len[i + 2]
+        s[i + 1] = acc + edge_len[i]
+        s[i + 2] = acc + e01
+        s[i + 3] = acc + e012
+        acc = acc + (e012 + edge_len[i + 3])
+        s[i + 4] = acc
+        i += 4
+    while i < n - 1:
+        acc = acc + edge_len[i]
+        s[i + 1] = acc
+        i += 1
     # the gradient is linear in gamma: passing -gamma ADDS the force -gamma grad(lambda)
     # to out_force directly (no scratch array) and returns -gamma lambda
     e, _tau, _kappa = capillary_energy_and_gradient(
