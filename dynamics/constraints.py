@@ -318,14 +318,12 @@ def _eliminate(work):
 
     Kept for :func:`_resolve` and :func:`_substitute`: g in row 3; for the top rows pc in
     row 4 and a g in row 2; for the bottom rows qa in row 2 and c g in row 4; pd, qd in
-    row 5.  Also returns the largest entry of row 6 and its edge (``not e <= err`` catches
-    NaN), and ``ok``.
+    row 5.  Returns ``ok``.  (The largest residual, row 6, is taken apart by
+    :func:`_row_max`, in SIMD code: in this loop it cost 12%.)
     """
     m = work.shape[1] - 2
     p = (m - 1) // 2
     nb = m - 1 - p
-    err = 0.0
-    edge = 0
     # top chain: minors th_{i-1}, th_{i-2}, raw c_{i-1}, pd_{i-1}
     t1 = 1.0
     t2 = 0.0
@@ -339,10 +337,6 @@ def _eliminate(work):
     ok = True
     for k in range(nb):
         i = k + 1
-        e = work[6, i]
-        if not e <= err:
-            err = e
-            edge = k
         aa = work[2, i]
         cc = work[4, i]
         th = work[3, i] * t1 - (aa * cprev) * t2
@@ -357,10 +351,6 @@ def _eliminate(work):
         t2 = t1
         t1 = th
         j = m - k
-        e = work[6, j]
-        if not e <= err:
-            err = e
-            edge = m - 1 - k
         aa = work[2, j]
         cc = work[4, j]
         uh = work[3, j] * u1 - (cc * aprev) * u2
@@ -389,10 +379,6 @@ def _eliminate(work):
     if nb < p + 1:
         # odd m: the middle row belongs to the top half
         i = p + 1
-        e = work[6, i]
-        if not e <= err:
-            err = e
-            edge = p
         aa = work[2, i]
         cc = work[4, i]
         th = work[3, i] * t1 - (aa * cprev) * t2
@@ -408,29 +394,22 @@ def _eliminate(work):
     a2 = abs(u1)
     ok = (ok and a1 >= 1.0 / ELIM_RANGE and a1 <= ELIM_RANGE
           and a2 >= 1.0 / ELIM_RANGE and a2 <= ELIM_RANGE)
-    return err, edge, ok
+    return ok
 
 
 @numba.njit(cache=True, error_model="numpy")
 def _eliminate_serial(work):
     """:func:`_eliminate` with the Thomas pivots computed directly (a division in the
-    chain of every row): the fallback when the minors leave their range.  Same outputs,
-    without ``ok``."""
+    chain of every row): the fallback when the minors leave their range.  Same outputs."""
     m = work.shape[1] - 2
     p = (m - 1) // 2
     nb = m - 1 - p
-    err = 0.0
-    edge = 0
     pc = 0.0
     pd = 0.0
     qa = 0.0
     qd = 0.0
     for k in range(nb):
         i = k + 1
-        e = work[6, i]
-        if not e <= err:
-            err = e
-            edge = k
         aa = work[2, i]
         den = work[3, i] - aa * pc
         pc = work[4, i] / den
@@ -440,10 +419,6 @@ def _eliminate_serial(work):
         work[4, i] = pc
         work[5, i] = pd
         j = m - k
-        e = work[6, j]
-        if not e <= err:
-            err = e
-            edge = m - 1 - k
         cc = work[4, j]
         den = work[3, j] - cc * qa
         qa = work[2, j] / den
@@ -454,10 +429,6 @@ def _eliminate_serial(work):
         work[5, j] = qd
     if nb < p + 1:
         i = p + 1
-        e = work[6, i]
-        if not e <= err:
-            err = e
-            edge = p
         aa = work[2, i]
         den = work[3, i] - aa * pc
         pc = work[4, i] / den
@@ -466,21 +437,42 @@ def _eliminate_serial(work):
         work[3, i] = 1.0 / den
         work[4, i] = pc
         work[5, i] = pd
-    return err, edge
 
 
 @numba.njit(cache=True, error_model="numpy")
 def _row_max(work, row):
-    """Largest entry of a work row over the edges, and its edge (``not e <= err`` catches
-    NaN)."""
+    """Largest entry of a work row over the edges; the entries are ``>= 0`` or NaN, and
+    NaN wins.
+
+    Taken as the largest bit pattern read as unsigned integers (non-negative doubles order
+    like their bits, and NaNs of either sign lie above ``inf``), so that the loop compiles
+    to SIMD code (a floating-point maximum that must see NaN stays scalar).  The pad
+    column 0 of the row serves as scratch to read the result back as a double.
+    """
+    bits = work[row].view(np.uint64)
+    mx = np.uint64(0)
+    for i in range(1, bits.shape[0] - 1):
+        b = bits[i]
+        mx = b if b > mx else mx
+    bits[0] = mx
+    err = work[row, 0]
+    work[row, 0] = 0.0
+    return err
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _row_argmax(work, row):
+    """Edge of the largest entry of a work row (the first, NaN first), for the reports."""
     err = 0.0
     edge = 0
     for i in range(work.shape[1] - 2):
         e = work[row, i + 1]
-        if not e <= err:
+        if e != e:
+            return i
+        if e > err:
             err = e
             edge = i
-    return err, edge
+    return edge
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -596,7 +588,7 @@ def shake(x_old, x_new, winv, edge_len, work, lam, warm=False, final_tol=SHAKE_F
         Newton updates applied; ``-1`` if the iteration failed (residual above
         ``SHAKE_FAIL`` after ``SHAKE_MAX_ITER`` updates, or not finite).
     edge : int
-        Edge with the largest residual.
+        When the iteration failed, the edge with the largest residual (else 0).
     err_old : float
         Relative length error of ``x_old`` (the previous step's result), free by-product.
     """
@@ -615,11 +607,7 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
         li2 = edge_len[i] * edge_len[i]
         work[6, i + 1] = abs(work[0, i + 1] * work[0, i + 1] + work[1, i + 1] * work[1, i + 1]
                              - li2) / (2.0 * li2)
-    err_old = 0.0
-    for i in range(m):
-        e = work[6, i + 1]
-        if not e <= err_old:
-            err_old = e
+    err_old = _row_max(work, 6)
     lam[0] = 0.0
     lam[m + 1] = 0.0
     _split(wf, work, 10)
@@ -630,16 +618,15 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
     err_prev = np.inf
     err_prev_prev = 0.0
     err = np.inf
-    edge = 0
     for it in range(SHAKE_MAX_ITER + 1):
         if err_prev <= SHAKE_CHORD:
             # the last update may be a chord step with the previous factors (see
             # SHAKE_CHORD): residuals first, the solve only if it is taken
             _split(xf, work, 8)
             _shake_residuals(edge_len, work)
-            err, edge = _row_max(work, 6)
+            err = _row_max(work, 6)
             if err <= SHAKE_TOL:
-                return err, it, edge, err_old
+                return err, it, 0, err_old
             # taken when the iteration is visibly converging fast: quadratically, or by a
             # factor SHAKE_CHORD in the last update (from err_prev <= 1e-6 Newton lands at
             # ~1e-13 with a constant just above 1, which the quadratic test alone rejects)
@@ -650,32 +637,32 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
                 _move(xf, wf, work, 5)
                 for i in range(1, m + 1):
                     lam[i] += work[5, i]
-                return err, it + 1, edge, err_old
+                return err, it + 1, 0, err_old
             # otherwise a Newton step from the same point (the checks below see this err)
         _split(xf, work, 8)
         _shake_rows(edge_len, work)
-        err, edge, ok = _eliminate(work)
-        if not ok:
-            _shake_rows(edge_len, work)
-            err, edge = _eliminate_serial(work)
+        err = _row_max(work, 6)
         if err <= SHAKE_TOL:
-            return err, it, edge, err_old
+            return err, it, 0, err_old
         if not err < np.inf:
-            return err, -1, edge, err_old
+            return err, -1, _row_argmax(work, 6), err_old
         if it == SHAKE_MAX_ITER or (err < SHAKE_FAIL and err >= 0.5 * err_prev):
             # stagnation at the round-off floor is accepted; anything else is a failure
             if err < SHAKE_FAIL:
-                return err, it, edge, err_old
-            return err, -1, edge, err_old
+                return err, it, 0, err_old
+            return err, -1, _row_argmax(work, 6), err_old
+        if not _eliminate(work):
+            _shake_rows(edge_len, work)
+            _eliminate_serial(work)
         err_prev = err
         _substitute(work)
         _move(xf, wf, work, 5)
         for i in range(1, m + 1):
             lam[i] += work[5, i]
         if err <= final_tol and err <= SHAKE_QUADRATIC * err_prev_prev * err_prev_prev:
-            return err, it + 1, edge, err_old
+            return err, it + 1, 0, err_old
         err_prev_prev = err
-    return err, -1, edge, err_old
+    return err, -1, _row_argmax(work, 6), err_old
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -711,10 +698,10 @@ def velocity_projection_flat(xf, vf, wf, work):
     _split(vf, work, 8)
     _split(wf, work, 10)
     _velocity_rows(work)
-    worst, _edge, ok = _eliminate(work)
-    if not ok:
+    worst = _row_max(work, 6)
+    if not _eliminate(work):
         _velocity_rows(work)
-        worst, _edge = _eliminate_serial(work)
+        _eliminate_serial(work)
     _substitute(work)
     _move(vf, wf, work, 5)
     return worst
