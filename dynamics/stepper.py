@@ -382,10 +382,39 @@ def _generate_source(refs):
     L.append("from dynamics.constraints import (constraint_error, shake, shake_flat,"
              " velocity_projection, velocity_projection_flat)")
     L.append("from dynamics.rod import kinetic_energy")
+    L.append("from numba import types")
+    L.append("from numba.core import cgutils")
+    L.append("from numba.extending import intrinsic")
     L += imports
     L.append("")
     L.append("")
-    L.append("@numba.njit(cache=True)")
+    # run() passes its arrays on as borrowed references (no reference count: run's
+    # caller holds them for the whole call), and _step, _forces are inlined into it:
+    # with counted references, every call of _step cost two atomic operations per array
+    # argument (23 of them), 2% of a step, and inlining alone did not remove them
+    L.append("@intrinsic")
+    L.append("def _borrowed(typingctx, arr):")
+    L.append("    # the same array without its reference-counted owner (meminfo): valid while")
+    L.append("    # the caller holds the array; reference counting it is then a no-op")
+    L.append("    if not isinstance(arr, types.Array):")
+    L.append("        return None")
+    L.append("")
+    L.append("    def codegen(context, builder, sig, args):")
+    L.append("        src = context.make_array(arr)(context, builder, value=args[0])")
+    L.append("        dst = context.make_array(arr)(context, builder)")
+    L.append("        dst.meminfo = cgutils.get_null_value(dst.meminfo.type)")
+    L.append("        dst.parent = cgutils.get_null_value(dst.parent.type)")
+    L.append("        dst.nitems = src.nitems")
+    L.append("        dst.itemsize = src.itemsize")
+    L.append("        dst.data = src.data")
+    L.append("        dst.shape = src.shape")
+    L.append("        dst.strides = src.strides")
+    L.append("        return dst._getvalue()")
+    L.append("")
+    L.append("    return arr(arr), codegen")
+    L.append("")
+    L.append("")
+    L.append("@numba.njit(cache=True, inline=\"always\")")
     L.append(f"def _forces(x, xf, v, t, edge_len, mass, B, F, Ff, energy, bw{fargs}):")
     L.append("    for j in range(Ff.shape[0]):")
     L.append("        Ff[j] = 0.0")
@@ -412,7 +441,7 @@ def _generate_source(refs):
     L.append("    return constraint_error(x, edge_len)")
     L.append("")
     L.append("")
-    L.append("@numba.njit(cache=True)")
+    L.append("@numba.njit(cache=True, inline=\"always\")")
     L.append(f"def _step(x, v, t, dt, edge_len, mass, winv0, B, {nodes}, cw, lam, bw, energy,"
              f" diag{pargs}):")
     L.append("    nc = xf.shape[0]")
@@ -495,6 +524,8 @@ def _generate_source(refs):
     L.append("@numba.njit(cache=True)")
     L.append(f"def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,"
              f" diag, rest{pargs}):")
+    for a in "x, v, edge_len, mass, winv0, A, cw, lam, bw, energy, diag, rest".split(", ") + P:
+        L.append(f"    {a} = _borrowed({a})")
     L.append("    nc = x.size")
     L.append("    Af = A.reshape(A.shape[0], nc)")
     L.append("    xf = x.reshape(nc)")
