@@ -29,18 +29,20 @@ work per edge.  So each solve is split into (1) a pass that builds all rows, wri
 without reductions or branches so that it compiles to SIMD code, from node coordinates
 first copied into one contiguous row per component (numba indexes an ``(n, 2)`` array
 with a run-time row stride, and even a flat view costs a shuffle per value: 2x slower);
+the largest residual is then taken by a SIMD pass of its own (:func:`_row_max`);
 (2) the elimination, run from both ends towards the middle in one loop ("burn at both
 ends"): two independent dependency chains, half as long, whose pivots come from the
-division-free recurrence of the leading minors (the division of a row then sits off the
-chain: 0.50 instead of 1.1 us for 198 rows with the same outputs, and 4% of a step); (3) the back substitution, also
-from the middle outwards; (4) one SIMD pass applying ``W G^T y`` to the nodes.  In SHAKE
-the last Newton update reuses the factors of the previous one when that one started within
-``SHAKE_CHORD`` of the constraints (a chord step: no row building, no division chain).
-Measured on 198 edges (``benchmarks/dynamics_speed.py``, section 5): the passes of one
-Newton iteration take 0.42 (rows), 0.62 (elimination), 0.18 (substitution) and 0.21 us
-(node update); a projection from a Verlet-like prediction (2 updates) 3.6 us instead of
-4.7 us for the former fused one-ended Thomas loops, a velocity projection 1.6 us instead of
-2.1 us.  In a run the previous step's multipliers are a better start still (see
+division-free recurrence of the leading minors, so that the division of a row sits off
+the chain (:func:`_eliminate`; the Thomas form with the division in the chain,
+:func:`_eliminate_serial`, is the fallback when the minors leave their range); (3) the
+back substitution, also from the middle outwards; (4) one SIMD pass applying ``W G^T y``
+to the nodes.  In SHAKE the last Newton update reuses the factors of the previous one
+when that one started within ``SHAKE_CHORD`` of the constraints (a chord step: no row
+building, no division chain).  Measured on 198 edges (``benchmarks/dynamics_speed.py
+--only 5``): the passes of one Newton iteration take 0.43 (rows), 0.05 (residual
+maximum), 0.42 (elimination; 0.62 with the division in the chain and the maximum in the
+loop, as before), 0.19 (substitution) and 0.21 us (node update); a velocity projection
+1.5 us.  In a run the previous step's multipliers are a better start still (see
 :mod:`dynamics.stepper`).
 
 Work arrays: ``work`` has shape ``(WORK_ROWS, n_edges + 2)``; the entry of edge ``i`` sits

@@ -35,8 +35,15 @@ kernel), damping 12%, a constraint effect (ground, clamp) 4-5%; a Python call pe
 would add 3.1 us/step (1.6x at 100 edges), a Python call and a recorded frame every 58
 steps (supp-fig5) 0.4 us/step.  The loops over all coordinates run on flat views of the
 (n, 2) arrays: numba indexes an (n, 2) array with a run-time row stride, which keeps a
-loop scalar.  Not chosen: a generic loop over a tuple of first-class functions (indirect
-calls, not cacheable by numba).  Cold compile of one stepper ~7-30 s, warm load ~0.5 s.
+loop scalar.  ``run`` hands its arrays on as borrowed references (an intrinsic drops the
+reference-counted owner: the caller holds the arrays for the whole call) and ``_step``,
+``_forces`` are inlined into it: numba counts the references of every array argument of
+a call with atomic operations, and a call of ``_step`` with its 23 arrays cost ~170 ns
+(measured; fig3-strip 8.3 -> 7.9 us a step; inlining alone did not pay).  The solvers
+and the bending kernel are called with the flat views (``shake_flat``,
+``velocity_projection_flat``, ``bending_force_add_flat``): a reshape per call is a C call.
+Not chosen: a generic loop over a tuple of first-class functions (indirect calls, not
+cacheable by numba).  Cold compile of one stepper ~7-30 s, warm load ~0.5 s.
 
 Where the time of an impact run goes (issue 5, measured with cycle counters around each
 part of the step on supp-fig5 and fig3-strip): SHAKE 42%, the velocity projection 18%,
