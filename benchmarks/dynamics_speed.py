@@ -15,7 +15,7 @@ Prints medians and ratios for:
 6. compile time with a cold cache vs a warm cache (fresh processes);
 7. with ``--dt-bound``: the explicit stability constant C by bisection.
 
-Usage: ``python benchmarks/dynamics_speed.py [--fast] [--dt-bound] [--only 3b]
+Usage: ``python benchmarks/dynamics_speed.py [--fast] [--dt-bound] [--only 3b|5]
 [--baseline REV]``.
 """
 
@@ -46,7 +46,9 @@ from dynamics.bending import BENDING_WORK_ROWS, bending_force_add
 from dynamics.constraints import (
     _edges,
     _eliminate,
+    _eliminate_serial,
     _move,
+    _row_max,
     _shake_rows,
     _split,
     _substitute,
@@ -401,7 +403,7 @@ def _passes_loop(which, xo, xf, wf, edge_len, work, w0, k):
             for r in range(2, 7):
                 for i in range(work.shape[1]):
                     work[r, i] = w0[r, i]
-            s += _eliminate(work)[0]
+            s += _eliminate(work)
         elif which == 2:
             for r in range(2, 7):
                 for i in range(work.shape[1]):
@@ -410,14 +412,25 @@ def _passes_loop(which, xo, xf, wf, edge_len, work, w0, k):
             _substitute(work)
         elif which == 4:
             _move(xf, wf, work, 5)
-        else:
+        elif which == 5:
             _edges(xo, work)
+        elif which == 6:
+            s += _row_max(work, 6)
+        elif which == 7:
+            for r in range(2, 7):
+                for i in range(work.shape[1]):
+                    work[r, i] = w0[r, i]
+            _eliminate_serial(work)
+        else:
+            velocity_projection(xo.reshape(xo.size // 2, 2), xf.reshape(xf.size // 2, 2),
+                                wf.reshape(wf.size // 2, 2), work)
     return s
 
 
 def bench_passes(repeat=5, k=20000):
-    """Cost of each pass of a SHAKE Newton iteration (rows, two-ended elimination, back
-    substitution, node update) on a rod of 198 edges (fig3-strip's resolution)."""
+    """Cost of each pass of a SHAKE Newton iteration (rows, residual maximum, two-ended
+    elimination by leading minors and its serial fallback, back substitution, node update)
+    and of a velocity projection, on a rod of 198 edges (fig3-strip's resolution)."""
     n = 198
     rod = wavy_rod(n)
     winv = np.repeat((1 / rod.mass)[:, None], 2, axis=1).copy()
@@ -430,16 +443,20 @@ def bench_passes(repeat=5, k=20000):
     _shake_rows(rod.edge_len, work)
     w0 = work.copy()
     names = ("rows (split + build)", "elimination", "", "back substitution", "node update",
-             "edges")
+             "edges", "residual maximum", "serial elimination", "velocity projection")
     t = {}
-    for which in range(6):
+    for which in range(9):
         _passes_loop(which, xo, xf.copy(), wf, rod.edge_len, work, w0, 10)
+        work[:] = w0
         t[which] = min(median_time(lambda: _passes_loop(which, xo, xf.copy(), wf,  # noqa: B023
                                                         rod.edge_len, work, w0, k), 1)
                        for _ in range(repeat)) / k
+        work[:] = w0
     t[1] -= t[2]  # the restore of the rows
+    t[7] -= t[2]
     print(f"one SHAKE Newton iteration, {n} edges: " + ", ".join(
-        f"{names[w]} {t[w] * 1e9:.0f} ns" for w in (0, 1, 3, 4)) + f"; edges {t[5] * 1e9:.0f} ns")
+        f"{names[w]} {t[w] * 1e9:.0f} ns" for w in (0, 6, 1, 7, 3, 4)) +
+        f"; edges {t[5] * 1e9:.0f} ns; a velocity projection {t[8] * 1e9:.0f} ns")
 
 
 COMPILE_SNIPPET = """
@@ -499,6 +516,9 @@ def main(fast=False, dt_bound=False, only=None, baseline=None):
     if only == "3b":
         bench_impacts(repeat=1 if fast else 5, baseline=baseline)
         return
+    if only == "5":
+        bench_shake(repeat=repeat)
+        return
     bench_overhead(steps=steps, repeat=repeat)
     bench_effects(steps=steps, repeat=repeat)
     if not fast:
@@ -516,7 +536,7 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fast", action="store_true")
     ap.add_argument("--dt-bound", action="store_true")
-    ap.add_argument("--only", choices=["3b"], help="run one section")
+    ap.add_argument("--only", choices=["3b", "5"], help="run one section")
     ap.add_argument("--baseline", metavar="REV",
                     help="git revision to time beside the working tree in section 3b")
     a = ap.parse_args()
