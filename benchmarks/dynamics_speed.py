@@ -411,7 +411,7 @@ def _passes_loop(which, xo, xf, wf, edge_len, work, w0, k):
         elif which == 3:
             _substitute(work)
         elif which == 4:
-            _move(xf, wf, work, 5)
+            _move(xf, wf, work, work[5])
         elif which == 5:
             _edges(xo, work)
         elif which == 6:

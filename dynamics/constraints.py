@@ -536,13 +536,24 @@ def _substitute(work):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _move(qf, wf, work, row):
+def _move(qf, wf, work, y):
     """``q_j += W_j (d_{j-1} y_{j-1} - d_j y_j)`` on flat ``qf``: ``d`` the edges in work
-    rows 0, 1 and ``y`` the padded work row ``row``."""
+    rows 0, 1 and ``y`` padded like a work row (a work row, or the multipliers)."""
     for j in range(qf.shape[0] // 2):
-        qf[2 * j] += wf[2 * j] * (work[0, j] * work[row, j] - work[0, j + 1] * work[row, j + 1])
-        qf[2 * j + 1] += wf[2 * j + 1] * (work[1, j] * work[row, j]
-                                          - work[1, j + 1] * work[row, j + 1])
+        qf[2 * j] += wf[2 * j] * (work[0, j] * y[j] - work[0, j + 1] * y[j + 1])
+        qf[2 * j + 1] += wf[2 * j + 1] * (work[1, j] * y[j] - work[1, j + 1] * y[j + 1])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _move_acc(qf, wf, work, lam):
+    """:func:`_move` with the Newton update in work row 5, also added to the multipliers
+    ``lam`` (in the same loop: one pass fewer)."""
+    y = work[5]
+    for j in range(qf.shape[0] // 2):
+        qf[2 * j] += wf[2 * j] * (work[0, j] * y[j] - work[0, j + 1] * y[j + 1])
+        qf[2 * j + 1] += wf[2 * j + 1] * (work[1, j] * y[j] - work[1, j + 1] * y[j + 1])
+        # entries 1..m (the pad m + 1 adds 0 to 0)
+        lam[j + 1] += y[j + 1]
 
 
 # ----------------------------------------------------------------------------- projections
@@ -614,9 +625,7 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
     lam[m + 1] = 0.0
     _split(wf, work, 10)
     if warm:
-        for i in range(m + 2):
-            work[5, i] = lam[i]
-        _move(xf, wf, work, 5)
+        _move(xf, wf, work, lam)
     err_prev = np.inf
     err_prev_prev = 0.0
     err = np.inf
@@ -636,9 +645,7 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
                                      or err <= SHAKE_CHORD * err_prev):
                 _resolve(work)
                 _substitute(work)
-                _move(xf, wf, work, 5)
-                for i in range(1, m + 1):
-                    lam[i] += work[5, i]
+                _move_acc(xf, wf, work, lam)
                 return err, it + 1, 0, err_old
             # otherwise a Newton step from the same point (the checks below see this err)
         _split(xf, work, 8)
@@ -658,9 +665,7 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
             _eliminate_serial(work)
         err_prev = err
         _substitute(work)
-        _move(xf, wf, work, 5)
-        for i in range(1, m + 1):
-            lam[i] += work[5, i]
+        _move_acc(xf, wf, work, lam)
         if err <= final_tol and err <= SHAKE_QUADRATIC * err_prev_prev * err_prev_prev:
             return err, it + 1, 0, err_old
         err_prev_prev = err
@@ -705,5 +710,5 @@ def velocity_projection_flat(xf, vf, wf, work):
         _velocity_rows(work)
         _eliminate_serial(work)
     _substitute(work)
-    _move(vf, wf, work, 5)
+    _move(vf, wf, work, work[5])
     return worst
