@@ -644,18 +644,37 @@ def _generate_source(refs):
     return "\n".join(L)
 
 
-def _fingerprint(refs):
-    """Hash of the files whose change must invalidate a generated stepper."""
-    files = set()
-    import dynamics
+def _module_closure(names):
+    """Source files of the modules ``names`` and of every module they use, directly or
+    not, within their own top-level packages (a kernel's helpers in another module of its
+    package, e.g. ``elastocap.drop`` for the capillary kernel, are compiled into the
+    stepper, so their change must invalidate it too; numpy, numba and the standard
+    library are left out)."""
+    roots = {n.split(".")[0] for n in names}
+    seen, files, todo = set(), set(), list(names)
+    while todo:
+        name = todo.pop()
+        if name in seen or name.split(".")[0] not in roots:
+            continue
+        seen.add(name)
+        mod = sys.modules.get(name)
+        f = getattr(mod, "__file__", None)
+        if mod is None or not f:
+            continue
+        files.add(os.path.abspath(f))
+        for value in vars(mod).values():
+            used = value.__name__ if isinstance(value, type(sys)) else getattr(
+                value, "__module__", None)
+            if isinstance(used, str):
+                todo.append(used)
+    return files
 
-    pkg = os.path.dirname(dynamics.__file__)
-    for f in ("bending.py", "constraints.py", "effects.py", "rod.py"):
-        files.add(os.path.join(pkg, f))
-    for _, mod, _ in refs:
-        f = getattr(sys.modules[mod], "__file__", None)
-        if f:
-            files.add(os.path.abspath(f))
+
+def _fingerprint(refs):
+    """Hash of the files whose change must invalidate a generated stepper: the
+    ``dynamics`` kernels and the effect kernels' modules with what they use."""
+    files = _module_closure(["dynamics.bending", "dynamics.constraints", "dynamics.effects",
+                             "dynamics.rod", *(mod for _, mod, _ in refs)])
     h = hashlib.sha256()
     h.update(numba.__version__.encode())
     for f in sorted(files):

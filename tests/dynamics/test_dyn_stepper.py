@@ -58,3 +58,29 @@ def test_multiplier_predictor_saves_newton_updates(wavy_rod):
     free = simulate(rod, (), dt=2e-3, t_end=5.0, frames=2)
     assert free.success and free.constraint_error_max < 5e-14
     assert free.shake_iterations_max <= 2
+
+
+def test_fingerprint_covers_what_a_kernel_uses_in_its_package(tmp_path, monkeypatch):
+    # a kernel whose helper lives in another module of its package: editing the helper
+    # must invalidate the generated stepper (numba's cache of the stepper would not see it)
+    import os
+    import sys
+
+    from dynamics.stepper import _fingerprint, _module_closure
+
+    pkg = tmp_path / "fpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "helper.py").write_text("def twice(a):\n    return 2.0 * a\n")
+    (pkg / "kern.py").write_text("import numpy as np\nfrom fpkg.helper import twice\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    __import__("fpkg.kern")
+    files = _module_closure(["fpkg.kern"])
+    assert files == {str(pkg / "kern.py"), str(pkg / "helper.py")}  # numpy left out
+    refs = (("force", "fpkg.kern", "k"),)
+    before = _fingerprint(refs)
+    st = os.stat(pkg / "helper.py")
+    os.utime(pkg / "helper.py", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    assert _fingerprint(refs) != before
+    for m in ("fpkg.kern", "fpkg.helper", "fpkg"):
+        sys.modules.pop(m, None)
