@@ -357,8 +357,45 @@ def _kernel_ref(effect):
     return mod, name
 
 
-def _generate_source(refs):
+#: The intrinsic through which the generated ``run()`` passes its arrays on as borrowed
+#: references (no reference count: run's caller holds them for the whole call; with _step
+#: and _forces inlined into run, nothing escapes it).  With counted references every call
+#: of _step cost two atomic operations per array argument (23 of them, ~180 ns, 2% of a
+#: step), and inlining alone did not remove them.  Written against numba's lowering API
+#: (``numba.core.cgutils``): if a numba release changes it, :func:`simulate` falls back to
+#: the plain stepper with a warning.
+_BORROWED_SOURCE = [
+    "@intrinsic",
+    "def _borrowed(typingctx, arr):",
+    "    # the same array without its reference-counted owner (meminfo): valid while",
+    "    # the caller holds the array; reference counting it is then a no-op",
+    "    if not isinstance(arr, types.Array):",
+    "        return None",
+    "",
+    "    def codegen(context, builder, sig, args):",
+    "        src = context.make_array(arr)(context, builder, value=args[0])",
+    "        dst = context.make_array(arr)(context, builder)",
+    "        dst.meminfo = cgutils.get_null_value(dst.meminfo.type)",
+    "        dst.parent = cgutils.get_null_value(dst.parent.type)",
+    "        dst.nitems = src.nitems",
+    "        dst.itemsize = src.itemsize",
+    "        dst.data = src.data",
+    "        dst.shape = src.shape",
+    "        dst.strides = src.strides",
+    "        return dst._getvalue()",
+    "",
+    "    return arr(arr), codegen",
+    "",
+    "",
+]
+
+
+def _generate_source(refs, borrowed=True):
     """Source of a stepper module for ``refs = [(kind, module, name), ...]``.
+
+    ``borrowed``: ``run`` hands its arrays on without reference counting, through an
+    intrinsic written against numba's lowering API (``numba.core.cgutils``, internal to
+    numba); ``False`` gives the plain module, the fallback when that API changes.
 
     Layout of the generated functions' arguments: ``x, v`` (n, 2) the state; ``A`` the
     (7, n, 2) node work arrays (forces F, prediction xn, half-step velocity vh, inverse
@@ -389,38 +426,15 @@ def _generate_source(refs):
     L.append("from dynamics.constraints import (constraint_error, shake, shake_flat,"
              " velocity_projection, velocity_projection_flat)")
     L.append("from dynamics.rod import kinetic_energy")
-    L.append("from numba import types")
-    L.append("from numba.core import cgutils")
-    L.append("from numba.extending import intrinsic")
+    if borrowed:
+        L.append("from numba import types")
+        L.append("from numba.core import cgutils")
+        L.append("from numba.extending import intrinsic")
     L += imports
     L.append("")
     L.append("")
-    # run() passes its arrays on as borrowed references (no reference count: run's
-    # caller holds them for the whole call), and _step, _forces are inlined into it:
-    # with counted references, every call of _step cost two atomic operations per array
-    # argument (23 of them), 2% of a step, and inlining alone did not remove them
-    L.append("@intrinsic")
-    L.append("def _borrowed(typingctx, arr):")
-    L.append("    # the same array without its reference-counted owner (meminfo): valid while")
-    L.append("    # the caller holds the array; reference counting it is then a no-op")
-    L.append("    if not isinstance(arr, types.Array):")
-    L.append("        return None")
-    L.append("")
-    L.append("    def codegen(context, builder, sig, args):")
-    L.append("        src = context.make_array(arr)(context, builder, value=args[0])")
-    L.append("        dst = context.make_array(arr)(context, builder)")
-    L.append("        dst.meminfo = cgutils.get_null_value(dst.meminfo.type)")
-    L.append("        dst.parent = cgutils.get_null_value(dst.parent.type)")
-    L.append("        dst.nitems = src.nitems")
-    L.append("        dst.itemsize = src.itemsize")
-    L.append("        dst.data = src.data")
-    L.append("        dst.shape = src.shape")
-    L.append("        dst.strides = src.strides")
-    L.append("        return dst._getvalue()")
-    L.append("")
-    L.append("    return arr(arr), codegen")
-    L.append("")
-    L.append("")
+    if borrowed:
+        L += _BORROWED_SOURCE
     L.append("@numba.njit(cache=True, inline=\"always\")")
     L.append(f"def _forces(x, xf, v, t, edge_len, mass, B, F, Ff, energy, bw{fargs}):")
     L.append("    for j in range(Ff.shape[0]):")
@@ -531,8 +545,9 @@ def _generate_source(refs):
     L.append("@numba.njit(cache=True)")
     L.append(f"def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,"
              f" diag, rest{pargs}):")
-    for a in "x, v, edge_len, mass, winv0, A, cw, lam, bw, energy, diag, rest".split(", ") + P:
-        L.append(f"    {a} = _borrowed({a})")
+    if borrowed:
+        for a in "x, v, edge_len, mass, winv0, A, cw, lam, bw, energy, diag, rest".split(", ") + P:
+            L.append(f"    {a} = _borrowed({a})")
     L.append("    nc = x.size")
     L.append("    Af = A.reshape(A.shape[0], nc)")
     L.append("    xf = x.reshape(nc)")
@@ -686,13 +701,16 @@ def _fingerprint(refs):
 _MODULES: dict = {}
 
 
-def compile_stepper(effects=()):
+def compile_stepper(effects=(), borrowed=True):
     """Return the generated stepper module for these effects (generate/import if needed).
 
     Parameters
     ----------
     effects : sequence of effect objects
         Only their ``kind`` and ``kernel`` matter (order included).
+    borrowed : bool, optional
+        Hand arrays on without reference counting (``_BORROWED_SOURCE``); ``False`` gives
+        the plain stepper (the same numbers, ~5% slower).
 
     Returns
     -------
@@ -707,12 +725,32 @@ def compile_stepper(effects=()):
                 f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}"
             )
         refs.append((e.kind, *_kernel_ref(e)))
-    refs = tuple(refs)
-    if refs in _MODULES:
-        return _MODULES[refs]
-    module = load_generated("_dynamics_stepper", _generate_source(refs), _fingerprint(refs))
-    _MODULES[refs] = module
+    key = (tuple(refs), borrowed)
+    if key in _MODULES:
+        return _MODULES[key]
+    src = _generate_source(key[0], borrowed)
+    try:
+        module = load_generated("_dynamics_stepper", src, _fingerprint(key[0]))
+    except (ImportError, AttributeError) as err:
+        if not borrowed:
+            raise
+        module = _plain_fallback(effects, err)
+    _MODULES[key] = module
     return module
+
+
+def _plain_fallback(effects, err):
+    """The plain stepper, with a warning, when numba refuses the borrowed-array intrinsic."""
+    import warnings
+
+    warnings.warn(
+        f"dynamics: numba {numba.__version__} refused the stepper's borrowed-array intrinsic "
+        f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}); using "
+        "the plain stepper: the same results, about 5% slower a step",
+        RuntimeWarning,
+        stacklevel=3,
+    )
+    return compile_stepper(effects, borrowed=False)
 
 
 def load_generated(prefix, src, fingerprint):
@@ -936,7 +974,11 @@ def simulate(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None, t
         rest_arr[1] = rest.duration
     work = (edge_len, mass, winv0, rod.B, A, cw, lam, bw, energy, diag, rest_arr)
     mod.prepare(x, v, t0, edge_len, winv0, A, cw, lam, *params)
-    mod.run(x, v, t0, dt, 0, *work, *params)
+    try:
+        mod.run(x, v, t0, dt, 0, *work, *params)  # compiles, or loads numba's cache
+    except numba.core.errors.NumbaError as err:
+        mod = _plain_fallback(effects, err)
+        mod.run(x, v, t0, dt, 0, *work, *params)
 
     # frames are written by the compiled loop (one row per frame, one spare for the final
     # state of a run that stops at rest)

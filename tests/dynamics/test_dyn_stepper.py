@@ -84,3 +84,21 @@ def test_fingerprint_covers_what_a_kernel_uses_in_its_package(tmp_path, monkeypa
     assert _fingerprint(refs) != before
     for m in ("fpkg.kern", "fpkg.helper", "fpkg"):
         sys.modules.pop(m, None)
+
+
+def test_plain_stepper_is_the_fallback_with_the_same_numbers(wavy_rod, monkeypatch):
+    # the borrowed-array intrinsic uses numba's internal lowering API: a numba that refuses
+    # it must give a warning and the plain stepper's results, bit for bit the same
+    import pytest
+
+    from dynamics import stepper
+
+    borrowed = simulate(wavy_rod, (), dt=2e-3, t_end=0.2, frames=3)
+    broken = [line.replace("if not isinstance(arr, types.Array):", "if True:")
+              for line in stepper._BORROWED_SOURCE]
+    monkeypatch.setattr(stepper, "_BORROWED_SOURCE", broken)
+    monkeypatch.setattr(stepper, "_MODULES", {})
+    with pytest.warns(RuntimeWarning, match="plain stepper"):
+        plain = simulate(wavy_rod, (), dt=2e-3, t_end=0.2, frames=3)
+    assert np.array_equal(plain.positions, borrowed.positions)
+    assert np.array_equal(plain.velocities, borrowed.velocities)
