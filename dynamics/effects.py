@@ -31,7 +31,8 @@ Every effect is a small object with four attributes (the *effect protocol*):
       set the held coordinates of the predicted positions ``x`` and zero the matching
       entries of the per-coordinate inverse mass ``winv`` (n, 2), so that the projection
       cannot move them.  ``stage == 1`` is called after the final kick, before the
-      velocity projection: set the velocities of the held coordinates.
+      velocity projection: set the velocities of the held coordinates (and leave ``winv``
+      as stage 0 set it: the velocity projection reuses SHAKE's copy of it).
 
 Optional hook of a force effect, read by the implicit stepper only
 (:func:`dynamics.simulate_implicit`; RATTLE needs no derivatives):

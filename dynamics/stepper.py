@@ -536,7 +536,9 @@ def _generate_source(refs, borrowed=True):
     L.append("        vf[j] = vhf[j] + half * winvf[j] * Ff[j]")
     for alias, p in cons:
         L.append(f"    {alias}(x, v, t1, {p}, edge_len, winv, 1)")
-    L.append("    velocity_projection_flat(xf, vf, winvf, cw)")
+    # SHAKE has just split winvf into the work array (constraint kernels change winv at
+    # stage 0 only)
+    L.append("    velocity_projection_flat(xf, vf, winvf, cw, True)")
     for alias, p in damps:
         L.append(f"    {alias}(x, v, t1 - half, {p}, edge_len, mass, half)")
     L.append("    return 0")
