@@ -38,7 +38,7 @@ steps (supp-fig5) 0.4 us/step.  The loops over all coordinates run on flat views
 loop scalar.  ``run`` hands its arrays on as borrowed references (an intrinsic drops the
 reference-counted owner: the caller holds the arrays for the whole call) and ``_step``,
 ``_forces`` are inlined into it: numba counts the references of every array argument of
-a call with atomic operations, and a call of ``_step`` with its 23 arrays cost ~170 ns
+a call with atomic operations, and a call of ``_step`` with its 23 arrays cost 170-180 ns
 (measured; fig3-strip 8.3 -> 7.9 us a step; inlining alone did not pay).  The solvers
 and the bending kernel are called with the flat views (``shake_flat``,
 ``velocity_projection_flat``, ``bending_force_add_flat``): a reshape per call is a C call.
@@ -359,9 +359,8 @@ def _kernel_ref(effect):
 
 #: The intrinsic through which the generated ``run()`` passes its arrays on as borrowed
 #: references (no reference count: run's caller holds them for the whole call; with _step
-#: and _forces inlined into run, nothing escapes it).  With counted references every call
-#: of _step cost two atomic operations per array argument (23 of them, ~180 ns, 2% of a
-#: step), and inlining alone did not remove them.  Written against numba's lowering API
+#: and _forces inlined into run, nothing escapes it; the cost it removes is measured in
+#: the module docstring).  Written against numba's lowering API
 #: (``numba.core.cgutils``): if a numba release changes it, :func:`simulate` falls back to
 #: the plain stepper with a warning.
 _BORROWED_SOURCE = [

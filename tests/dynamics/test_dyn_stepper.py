@@ -75,15 +75,17 @@ def test_fingerprint_covers_what_a_kernel_uses_in_its_package(tmp_path, monkeypa
     (pkg / "kern.py").write_text("import numpy as np\nfrom fpkg.helper import twice\n")
     monkeypatch.syspath_prepend(str(tmp_path))
     __import__("fpkg.kern")
-    files = _module_closure(["fpkg.kern"])
-    assert files == {str(pkg / "kern.py"), str(pkg / "helper.py")}  # numpy left out
-    refs = (("force", "fpkg.kern", "k"),)
-    before = _fingerprint(refs)
-    st = os.stat(pkg / "helper.py")
-    os.utime(pkg / "helper.py", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
-    assert _fingerprint(refs) != before
-    for m in ("fpkg.kern", "fpkg.helper", "fpkg"):
-        sys.modules.pop(m, None)
+    try:
+        files = _module_closure(["fpkg.kern"])
+        assert files == {str(pkg / "kern.py"), str(pkg / "helper.py")}  # numpy left out
+        refs = (("force", "fpkg.kern", "k"),)
+        before = _fingerprint(refs)
+        st = os.stat(pkg / "helper.py")
+        os.utime(pkg / "helper.py", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+        assert _fingerprint(refs) != before
+    finally:
+        for m in ("fpkg.kern", "fpkg.helper", "fpkg"):
+            sys.modules.pop(m, None)
 
 
 def test_plain_stepper_is_the_fallback_with_the_same_numbers(wavy_rod, monkeypatch):
