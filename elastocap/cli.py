@@ -14,8 +14,10 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from elastocap._version import __version__
+from elastocap.cli_args import check_resources, force_argument
 from elastocap.cli_args import load_scene_from_args as _load
 from elastocap.cli_args import scene_arguments as _scene_args
+from elastocap.io import OutputFolder
 from elastocap.jsonutil import jsonable
 from elastocap.scene import SceneError, builtin_scene_names, load_scene
 
@@ -80,10 +82,21 @@ def _out_dir(args, default_name: str) -> Path:
     return Path(args.out) if args.out else Path("out") / default_name
 
 
-def _trace(args):
+def _out_folder(args, default_name: str, kind: str) -> OutputFolder:
+    """The run's output folder, its permissions checked now (before the work)."""
+    return OutputFolder(_out_dir(args, default_name), kind)
+
+
+def _stem_value(v: float) -> str:
+    """A parameter value as it appears in a file name (6 significant digits)."""
+    return f"{v:.6g}"
+
+
+def _trace(args, scene=None):
     from elastocap.statics.branches import trace_branches
 
-    scene = _load(args)
+    scene = _load(args) if scene is None else scene
+    check_resources(scene, "statics", getattr(args, "force", False))
     prange = tuple(args.range) if args.range else None
     if scene.effects.gravity > 0 or scene.effects.ground:
         if args.param == "drop.wetted_length" and scene.effects.ground:
@@ -135,23 +148,26 @@ def _print_folds(bs) -> None:
 
 
 def cmd_branches(args) -> int:
+    from elastocap.statics.branches import BranchSet
     from elastocap.statics.plot import plot_branch_set
 
-    bs = _trace(args)
-    out = _out_dir(args, f"branches-{bs.scene.name}")
-    paths = bs.save(out)
-    png = out / "branches.png"
+    scene = _load(args)
+    folder = _out_folder(args, f"branches-{scene.name}", "branches")
+    bs = _trace(args, scene)
+    if isinstance(bs, BranchSet):
+        paths = bs.save(folder)
+    else:  # the strip's branch sets write their own files: staged, then moved in
+        with folder.staged() as stage:
+            bs.save(stage)
+        paths = [p for p in folder.files if p.name != "branches.png"]
     if type(bs).__name__ == "ContactBranchSet":
-        from elastocap.strip.plot import plot_contact_branch_set
-
-        plot_contact_branch_set(bs, png)
+        from elastocap.strip.plot import plot_contact_branch_set as plot
     elif type(bs).__name__ == "StripBranchSet":
-        from elastocap.strip.plot import plot_strip_branch_set
-
-        plot_strip_branch_set(bs, png)
+        from elastocap.strip.plot import plot_strip_branch_set as plot
     else:
-        plot_branch_set(bs, png)
-    paths.append(png)
+        plot = plot_branch_set
+    paths.append(folder.savefig(lambda path: plot(bs, path), "branches.png"))
+    out = folder.path
     if args.json:
         rep = _fold_report(bs)
         rep["files"] = [str(p) for p in paths]
@@ -188,22 +204,29 @@ def cmd_impact(args) -> int:
     from elastocap.impact import run_impact
 
     scene = _load(args)
-    if args.frames is not None and args.frames < 2:
-        raise UsageError(f"--frames: got {args.frames}; expected an integer >= 2")
+    if args.frames is not None and not 2 <= args.frames <= 200:
+        raise UsageError(f"--frames: got {args.frames}; expected an integer from 2 to 200")
+    check_resources(scene, "impact", args.force)
+    # the values that distinguish impacts of one scene: Delta and the drop's place x
+    stem = (
+        f"impact-{scene.name}-delta{_stem_value(scene.drop.wetted_length)}"
+        f"-x{_stem_value(scene.distance_from_end)}"
+    )
+    folder = _out_folder(args, f"impact-{scene.name}", stem)
     res = run_impact(scene)
     rep = res.to_dict()
-    if args.out:
-        from elastocap.frames import frame_strip
+    from elastocap.frames import frame_strip
 
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        npz = out / f"impact-{scene.name}.npz"
-        meta = {**rep, "scene": scene.data}
-        res.simulation.save_npz(npz, context=jsonable(meta))
-        (out / f"impact-{scene.name}.json").write_text(json.dumps(jsonable(meta), indent=2))
-        png = out / f"impact-{scene.name}-frames.png"
-        frame_strip(res, scene, png, k=args.frames or 8)
-        rep["files"] = [str(npz), str(out / f"impact-{scene.name}.json"), str(png)]
+    meta = {**rep, "scene": scene.data, "scene_name": scene.name,
+            "parameters": {"drop.wetted_length": scene.drop.wetted_length,
+                           "drop.distance_from_end": scene.distance_from_end}}
+    with folder.file(f"{stem}.npz") as tmp:
+        res.simulation.save_npz(tmp, context=jsonable(meta))
+    js = folder.write_json(f"{stem}.json", meta)
+    png = folder.savefig(
+        lambda path: frame_strip(res, scene, path, k=args.frames or 8), f"{stem}-frames.png"
+    )
+    rep["files"] = [str(folder.path / f"{stem}.npz"), str(js), str(png)]
     if args.json:
         _print_json(rep)
     else:
@@ -231,8 +254,14 @@ def cmd_figures(args) -> int:
 
     if args.only and args.only not in FIGURES:
         raise UsageError(f"--only: got {args.only!r}; expected one of {', '.join(FIGURES)}")
-    out = _out_dir(args, "figures")
-    written = run_figures(out, only=args.only, fast=args.fast)
+    folder = _out_folder(args, "figures", "figures")
+    written = {}
+    for name in FIGURES:
+        if args.only and name != args.only:
+            continue
+        # figures that resume from their own earlier output write straight into the folder
+        paths = run_figures(folder.path, only=name, fast=args.fast)[name]
+        written[name] = folder.adopt(paths)
     if args.json:
         _print_json({"figures": {k: [str(p) for p in v] for k, v in written.items()}})
     else:
@@ -250,7 +279,24 @@ def cmd_overlay(args) -> int:
         raise UsageError(
             f"--delta: got {args.delta}; expected values <= rod.length = {scene.rod.length}"
         )
-    res = run_overlay(scene, deltas, _out_dir(args, f"overlay-{scene.name}"))
+    for d in (deltas.min(), deltas.max()):  # the edge count follows 1/Delta
+        check_resources(scene.with_overrides({"drop.wetted_length": float(d)}), "impact",
+                        args.force)
+    check_resources(scene, "statics", args.force)
+    stem = (f"overlay-{scene.name}-delta{_stem_value(deltas.min())}-"
+            f"{_stem_value(deltas.max())}-{len(deltas)}")
+    folder = _out_folder(args, f"overlay-{scene.name}", stem)
+    res = run_overlay(scene, deltas, None)
+    from elastocap.overlay import plot_overlay
+
+    res["files"] = [
+        str(folder.savefig(lambda path: plot_overlay(res["branch_set"], res["runs"],
+                                                     res["results"], path), f"{stem}.png")),
+        str(folder.write_json(f"{stem}.json", {"scene": scene.data, "scene_name": scene.name,
+                                               "parameter": "drop.wetted_length",
+                                               "runs": res["runs"],
+                                               "folds": res["branch_set"].folds})),
+    ]
     if args.json:
         _print_json(
             {"runs": res["runs"], "files": res.get("files", []), "folds": res["branch_set"].folds}
@@ -277,20 +323,22 @@ def cmd_demo(args) -> int:
     from elastocap.statics.plot import plot_branch_set
 
     scene = _load(args)
-    out = _out_dir(args, "demo")
-    out.mkdir(parents=True, exist_ok=True)
+    check_resources(scene, "statics", args.force)
+    check_resources(scene, "impact", args.force)
+    folder = _out_folder(args, "demo", f"demo-{scene.name}")
+    out = folder.path
     say = (lambda *a: None) if args.json else print
     say(f"elastocap {__version__}: the tour of scene {scene.name!r} -> {out}/")
     bs = trace_branches(scene)
     _print_folds(bs) if not args.json else None
-    png = out / f"{scene.name}-branches.png"
-    plot_branch_set(bs, png)
+    png = folder.savefig(lambda path: plot_branch_set(bs, path), f"{scene.name}-branches.png")
     files = [str(png)]
     fold = min((f["value"] for f in bs.folds), default=0.5 * scene.rod.length)
     deltas = [round(0.72 * fold, 3), round(min(scene.rod.length, 1.15 * fold), 3)]
     runs, results = [], []
     for d in deltas:
         sc = scene.with_overrides({"drop.wetted_length": d})
+        check_resources(sc, "impact", args.force)
         r = run_impact(sc)
         reached = classify_final_state(bs, d, r.simulation.positions[-1])
         runs.append(
@@ -304,8 +352,8 @@ def cmd_demo(args) -> int:
             }
         )
         results.append(r)
-        strip = out / f"{scene.name}-impact-delta{d:g}.png"
-        frame_strip(r, sc, strip, k=8)
+        strip = folder.savefig(lambda path, r=r, sc=sc: frame_strip(r, sc, path, k=8),
+                               f"{scene.name}-impact-delta{_stem_value(d)}.png")
         files.append(str(strip))
         say(
             f"  impact at Δ = {d:g}: {r.outcome} (M = {r.final_measure:+.4f}, reaches "
@@ -313,8 +361,8 @@ def cmd_demo(args) -> int:
         )
     from elastocap.overlay import plot_overlay
 
-    ov = out / f"{scene.name}-overlay.png"
-    plot_overlay(bs, runs, results, ov)
+    ov = folder.savefig(lambda path: plot_overlay(bs, runs, results, path),
+                        f"{scene.name}-overlay.png")
     files.append(str(ov))
     if args.json:
         _print_json({**_fold_report(bs), "impacts": runs, "files": files})
@@ -375,7 +423,21 @@ def build_parser() -> argparse.ArgumentParser:
                 "(0.3, min(2.2, 1.95 x)) on the ground)",
             )
         if name in ("branches", "figures", "demo", "impact", "overlay"):
-            p.add_argument("--out", metavar="DIR", help="output directory (default: out/...)")
+            default_out = {"branches": "out/branches-SCENE", "figures": "out/figures",
+                           "demo": "out/demo", "impact": "out/impact-SCENE",
+                           "overlay": "out/overlay-SCENE"}[name]
+            p.add_argument(
+                "--out", metavar="DIR", help=f"output directory (default: {default_out})"
+            )
+        if name in ("branches", "folds", "demo", "impact", "overlay"):
+            force_argument(p)
+        if name == "overlay":
+            p.add_argument(
+                "--delta",
+                required=True,
+                metavar="LO:HI:N",
+                help="wetted lengths Delta of the impacts: N values from LO to HI",
+            )
         if name == "folds":
             p.add_argument(
                 "--check",

@@ -43,7 +43,7 @@ from elastocap.drop import capillary_energy_and_gradient
 from elastocap.scene import Scene, SceneError
 from elastocap.statics.shape import arc_points
 
-__all__ = ["ImpactResult", "impact_settings", "run_impact", "turning_measure"]
+__all__ = ["ImpactResult", "edge_count", "impact_settings", "run_impact", "turning_measure"]
 
 #: Edges per accuracy preset, as a minimum; also at least 16 edges across the wet part so
 #: that the contact lines and the pressure are resolved (measured: README, "What accuracy
@@ -183,14 +183,21 @@ def _rise_message(rise, scale, t_rise):
     )
 
 
+def edge_count(scene: Scene) -> int:
+    """Edges of an impact run: ``numerics.n_edges``, or the accuracy preset's count raised
+    to resolve the wet interval (a fixed number of edges per Delta)."""
+    num = scene.numerics
+    return num.n_edges or max(
+        ACCURACY_EDGES[num.accuracy],
+        math.ceil(_EDGES_PER_DELTA[num.accuracy] * scene.rod.length / scene.drop.wetted_length),
+    )
+
+
 def impact_settings(scene: Scene) -> dict:
     """Resolution, time step and stopping rule of an impact run (scene numerics/presets)."""
     num = scene.numerics
     L = scene.rod.length
-    n = num.n_edges or max(
-        ACCURACY_EDGES[num.accuracy],
-        math.ceil(_EDGES_PER_DELTA[num.accuracy] * L / scene.drop.wetted_length),
-    )
+    n = edge_count(scene)
     h = L / n
     dt_max = stable_dt(np.full(n, h), scene.rod.mass_per_length, scene.rod.bending_modulus)
     if num.integrator == "implicit":

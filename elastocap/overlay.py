@@ -107,7 +107,8 @@ def run_overlay(scene: Scene, deltas, out_dir=None, bs: BranchSet | None = None)
     Returns
     -------
     dict with ``runs`` (per Delta: outcome, final measure, branch reached, distance...),
-    ``branch_set`` and, when ``out_dir`` is given, ``files``.
+    ``branch_set``, ``results`` (the :class:`~elastocap.impact.ImpactResult` of each run)
+    and, when ``out_dir`` is given, ``files``.
     """
     t0 = time.perf_counter()
     if bs is None:
@@ -132,14 +133,19 @@ def run_overlay(scene: Scene, deltas, out_dir=None, bs: BranchSet | None = None)
             }
         )
         results.append(res)
-    out = {"runs": runs, "branch_set": bs, "wall_time_s": time.perf_counter() - t0}
+    out = {
+        "runs": runs,
+        "branch_set": bs,
+        "results": results,
+        "wall_time_s": time.perf_counter() - t0,
+    }
     if out_dir is not None:
-        from pathlib import Path
+        from elastocap.io import OutputFolder
 
-        path = Path(out_dir)
-        path.mkdir(parents=True, exist_ok=True)
-        png = path / f"overlay-{scene.name}.png"
-        plot_overlay(bs, runs, results, png)
+        folder = OutputFolder(out_dir, f"overlay-{scene.name}", key="out_dir")
+        png = folder.savefig(
+            lambda path: plot_overlay(bs, runs, results, path), f"overlay-{scene.name}.png"
+        )
         out["files"] = [str(png)]
     return out
 

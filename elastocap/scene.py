@@ -24,6 +24,7 @@ import difflib
 import hashlib
 import json
 import math
+import numbers
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -31,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from elastocap import units
+from elastocap.io import check_stem
 
 __all__ = [
     "Scene",
@@ -54,7 +56,10 @@ class SceneError(ValueError):
         self.key = key
         self.value = value
         self.allowed = allowed
-        super().__init__(f"{key}: got {value!r}; {allowed}")
+        text = repr(value)
+        if len(text) > 80:  # a huge number or table: its start and its length
+            text = f"{text[:40]}... ({len(text)} characters)"
+        super().__init__(f"{key}: got {text}; {allowed}")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -140,37 +145,67 @@ def _suggest(word: str, options) -> str:
     return f" Did you mean '{close[0]}'?" if close else ""
 
 
+#: Largest whole number a count key accepts: counts are stored in 32-bit integers inside
+#: the engines; the resource guards (:mod:`elastocap.cli_args`) refuse far smaller ones.
+INT_MAX = 2**31 - 1
+
+
+def _is_bool(value: Any) -> bool:
+    import numpy as np
+
+    return isinstance(value, bool | np.bool_)
+
+
 def _check_value(key: str, kind: str, value: Any) -> Any:
-    """Validate one value against its kind; return the normalised value."""
+    """Validate one value against its kind; return the normalised value (Python floats and
+    ints, -0.0 as 0.0; numpy scalars are accepted like Python numbers)."""
     if kind in ("pos", "nonneg", "real", "opt-pos"):
         if kind == "opt-pos" and value is None:
             return None
-        if isinstance(value, bool) or not isinstance(value, int | float):
+        if _is_bool(value) or not isinstance(value, numbers.Real):
             raise SceneError(key, value, "expected a number")
-        v = float(value)
+        try:
+            v = float(value)
+        except OverflowError:
+            v = math.inf
         if not math.isfinite(v):
             raise SceneError(key, value, "expected a finite number (not NaN or inf)")
         if kind in ("pos", "opt-pos") and v <= 0.0:
             raise SceneError(key, value, "expected a number > 0")
         if kind == "nonneg" and v < 0.0:
             raise SceneError(key, value, "expected a number >= 0")
-        return v
+        return v + 0.0  # -0.0 -> 0.0: equal physics, equal digests
     if kind == "bool":
-        if not isinstance(value, bool):
+        if not _is_bool(value):
             raise SceneError(key, value, "expected true or false")
-        return value
+        return bool(value)
     if kind == "int+":
-        if isinstance(value, bool) or not isinstance(value, int):
+        if _is_bool(value) or not isinstance(value, numbers.Integral):
             raise SceneError(key, value, "expected a whole number")
         if value < 0:
             raise SceneError(key, value, "expected a whole number >= 0 (0 = preset default)")
+        if value > INT_MAX:
+            raise SceneError(key, value, f"expected a whole number <= {INT_MAX}")
         return int(value)
     if kind.startswith("str:"):
         choices = kind[4:].split("|")
-        if value not in choices:
+        if not isinstance(value, str) or value not in choices:
             raise SceneError(key, value, f"expected one of {', '.join(choices)}")
         return value
     raise AssertionError(kind)
+
+
+def _plain(obj: Any) -> Any:
+    """A copy of raw scene data with numpy scalars as Python values (so it saves as JSON)."""
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
 
 
 def _read_section(raw: Any, name: str, schema: dict[str, tuple[str, Any]]) -> dict[str, Any]:
@@ -419,6 +454,7 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
     """Validate a raw scene table (as parsed from TOML) into a :class:`Scene`."""
     if not isinstance(data, dict):
         raise SceneError("scene", data, "expected a TOML table")
+    data = _plain(data)
     for k in data:
         if k not in TOP_KEYS:
             raise SceneError(
@@ -426,8 +462,15 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
                 data[k],
                 f"unknown section; allowed: {', '.join(sorted(TOP_KEYS))}." + _suggest(k, TOP_KEYS),
             )
-    name = str(data.get("name", name))
-    description = str(data.get("description", ""))
+    name = data.get("name", name)
+    if not isinstance(name, str):
+        raise SceneError("name", name, "expected a string (it names the output files)")
+    problem = check_stem(name)
+    if problem is not None:
+        raise SceneError("name", name, problem)
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        raise SceneError("description", description, "expected a string")
     experiment = None
     spreading = None
     raw_rod = data.get("rod")
@@ -461,7 +504,10 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
             **drop_extra,
         }
         raw_spr = {"drop_radius": dim.drop_radius, "delta0": dim.delta0}
-        eff = dict(data.get("effects", {}))
+        eff = data.get("effects", {})
+        if not isinstance(eff, dict):
+            raise SceneError("effects", eff, "expected a table of keys [effects]")
+        eff = dict(eff)
         if "gravity" in eff and eff["gravity"] != 1.0:
             raise SceneError(
                 "effects.gravity", eff["gravity"], "an [experiment] scene uses units with g = 1"
@@ -546,7 +592,17 @@ def parse_override(text: str) -> tuple[str, Any]:
         value = tomllib.loads(f"v = {val}")["v"]
     except tomllib.TOMLDecodeError:
         value = val
+    except RecursionError:
+        raise SceneError(key, _short(val), "nested too deeply; expected a number, "
+                         "true/false or a word") from None
+    except ValueError:  # an integer beyond Python's digit limit (4300)
+        raise SceneError(key, _short(val), "too many digits; expected a number") from None
     return key, value
+
+
+def _short(text: str, n: int = 40) -> str:
+    """A long input shortened for an error message (its length said)."""
+    return text if len(text) <= n else f"{text[:n]}... ({len(text)} characters)"
 
 
 def _apply_overrides(data: dict, overrides: dict[str, Any]) -> dict:
@@ -582,7 +638,7 @@ def _apply_overrides(data: dict, overrides: dict[str, Any]) -> dict:
         if sec == "drop" and k in ("center", "distance_from_end"):
             table.pop("center", None)
             table.pop("distance_from_end", None)
-        table[k] = value
+        table[k] = _plain(value)
     return out
 
 
@@ -597,6 +653,31 @@ def _read_toml(text: str, origin: str) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise SceneError("scene", origin, f"not valid TOML: {err}") from None
+    except RecursionError:
+        raise SceneError(
+            "scene", origin, "not a usable scene: its tables or arrays are nested too deeply"
+        ) from None
+    except ValueError:  # an integer beyond Python's digit limit (4300)
+        raise SceneError(
+            "scene", origin, "not a usable scene: a number has too many digits"
+        ) from None
+
+
+def _read_file(path: Path) -> str:
+    """The UTF-8 text of a scene file; unreadable or non-UTF-8 files are refused by name."""
+    try:
+        raw = path.read_bytes()
+    except OSError as err:
+        raise SceneError("scene", str(path), f"cannot read the file ({err.strerror})") from None
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise SceneError(
+            "scene",
+            str(path),
+            f"not UTF-8 text (byte 0x{raw[err.start]:02x} at offset {err.start}); a scene "
+            "file is UTF-8 TOML",
+        ) from None
 
 
 def load_scene(source: str | Path, overrides: dict[str, Any] | list[str] | None = None) -> Scene:
@@ -623,7 +704,7 @@ def load_scene(source: str | Path, overrides: dict[str, Any] | list[str] | None 
                 f"not a built-in scene ({', '.join(builtin)}) nor a TOML file."
                 + _suggest(name, builtin),
             )
-        data = _read_toml(path.read_text(), name)
+        data = _read_toml(_read_file(path), name)
         name = path.stem
     if overrides:
         if isinstance(overrides, list):

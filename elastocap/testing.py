@@ -23,24 +23,42 @@ class FoldMismatch(AssertionError):
     """Raised by :func:`assert_folds`; the message is the comparison table."""
 
 
-def load_folds(path) -> list[dict]:
-    """Read the ``folds`` list of a JSON file (as written by ``elastocap folds --json``)."""
-    p = Path(path)
-    try:
-        data = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise ValueError(f"--check: got {str(path)!r}; no such file") from None
-    except json.JSONDecodeError as err:
-        raise ValueError(f"--check: got {str(path)!r}; not valid JSON ({err})") from None
-    folds = data.get("folds") if isinstance(data, dict) else None
+def _fold_list(data, origin: str) -> list[dict]:
+    """The fold list of ``data``: a list of fold objects, or an object with a key ``folds``
+    (the JSON of ``elastocap folds --json``, or a ``branches.json``)."""
+    folds = data.get("folds") if isinstance(data, dict) else data
     if not isinstance(folds, list) or not all(
-        isinstance(f, dict) and isinstance(f.get("value"), int | float) for f in folds
+        isinstance(f, dict)
+        and isinstance(f.get("value"), int | float)
+        and not isinstance(f.get("value"), bool)
+        for f in folds
     ):
         raise ValueError(
-            f"--check: got {str(path)!r}; expected a JSON object with a key 'folds': a list "
-            "of objects each with a numeric 'value' (the output of `elastocap folds --json`)"
+            f"{origin}; expected a list of folds (objects each with a numeric 'value', as "
+            "find_folds returns) or a JSON object with a key 'folds' (the output of "
+            "`elastocap folds --json`)"
         )
     return folds
+
+
+def load_folds(path, option: str = "--check") -> list[dict]:
+    """Read the fold list of a JSON file: the output of ``elastocap folds --json``, a
+    ``branches.json``, or a saved list of folds (``json.dump(find_folds(scene), f)``)."""
+    p = Path(path)
+    origin = f"{option}: got {str(path)!r}"
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ValueError(f"{origin}; no such file") from None
+    except IsADirectoryError:
+        raise ValueError(f"{origin}; this is a folder, expected a JSON file") from None
+    except OSError as err:
+        raise ValueError(f"{origin}; cannot read the file ({err.strerror})") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{origin}; not UTF-8 text (expected a JSON file)") from None
+    except (json.JSONDecodeError, RecursionError) as err:
+        raise ValueError(f"{origin}; not valid JSON ({err})") from None
+    return _fold_list(data, origin)
 
 
 def compare_folds(found, expected, rtol=DEFAULT_RTOL) -> tuple[bool, str]:
@@ -72,13 +90,18 @@ def assert_folds(found, expected, rtol=DEFAULT_RTOL) -> None:
     Parameters
     ----------
     found : list of dict, or a BranchSet
-        e.g. ``elastocap.find_folds(scene)``.
-    expected : list of dict, or a path to a reference JSON file
+        e.g. ``elastocap.find_folds(scene)`` (also after a JSON round trip).
+    expected : list of dict, a dict with a key ``folds``, a BranchSet, or a path to a JSON
+        file holding either (see :func:`load_folds`)
     """
     if hasattr(found, "folds"):
         found = found.folds
+    if hasattr(expected, "folds"):
+        expected = expected.folds
     if isinstance(expected, str | Path):
-        expected = load_folds(expected)
+        expected = load_folds(expected, "expected")
+    found = _fold_list(found, "found")
+    expected = _fold_list(expected, "expected")
     ok, table = compare_folds(found, expected, rtol)
     if not ok:
         raise FoldMismatch("\n" + table)

@@ -204,23 +204,98 @@ class BranchSet:
             "metadata": self.metadata,
         }
 
+    #: ``format`` of the ``branches.json`` that :meth:`save` writes and :meth:`load` reads.
+    FORMAT = "elastocap.statics.BranchSet/1"
+
     def save(self, out_dir) -> list:
-        """Write ``branch_K.npz`` (+ metadata inside) per branch and ``branches.json``."""
+        """Write ``branch_K.npz`` (+ ``branch_K.json``) per branch and ``branches.json``.
+
+        ``out_dir`` is a folder path or an :class:`elastocap.io.OutputFolder`. Every file is
+        written atomically; the folder's earlier branch files are removed first (only those
+        an earlier save listed), so no stale ``branch_K`` survives a run with fewer branches.
+        The branches record their parameter by its scene key (e.g. ``drop.wetted_length``).
+        Returns the paths written.
+        """
+        import json
+        from dataclasses import replace
+
+        from elastocap.io import OutputFolder
+
+        folder = out_dir if isinstance(out_dir, OutputFolder) else OutputFolder(
+            out_dir, "branches", key="out_dir")
+        paths = []
+        files = []
+        with folder.staged() as stage:
+            for k, br in enumerate(self.branches):
+                meta = {**br.metadata, "label": self.labels[k], "scene": self.scene.data,
+                        "statics": self.metadata}
+                br.metadata.update(meta)
+                replace(br, parameter=self.parameter, metadata=meta).save(
+                    stage / f"branch_{k}.npz")
+                files.append(f"branch_{k}.npz")
+            summary = self.summary()
+            summary["format"] = self.FORMAT
+            for line, name in zip(summary["branches"], files, strict=True):
+                line["file"] = name
+            (stage / "branches.json").write_text(
+                json.dumps(jsonable(summary), indent=2), encoding="utf-8")
+        paths = [folder.final(stage / f) for f in files] + [folder.final(stage / "branches.json")]
+        return paths
+
+    @classmethod
+    def load(cls, folder) -> BranchSet:
+        """Read a branch set written by :meth:`save` (no recomputation: the scene, the
+        discretization and every branch and special point come from the files).
+
+        Raises ValueError naming the file when the folder is not a complete free-rod branch
+        set (e.g. a strip's contact branch set, or a missing ``branch_K.npz``).
+        """
         import json
         from pathlib import Path
 
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = []
-        for k, br in enumerate(self.branches):
-            br.metadata.update(
-                {"label": self.labels[k], "scene": self.scene.data, "statics": self.metadata}
-            )
-            paths.append(br.save(out / f"branch_{k}.npz"))
-        js = out / "branches.json"
-        js.write_text(json.dumps(jsonable(self.summary()), indent=2))
-        paths.append(js)
-        return paths
+        from elastocap.scene import build_scene
+
+        root = Path(folder)
+        js = root / "branches.json" if root.is_dir() else root
+        root = js.parent
+        try:
+            data = json.loads(js.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ValueError(f"{str(js)!r}: no such file (a branches folder has "
+                             "branches.json)") from None
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+            raise ValueError(f"{str(js)!r}: not a readable branches.json ({err})") from None
+        if not isinstance(data, dict) or data.get("format") != cls.FORMAT:
+            what = ("a strip's contact branch set" if isinstance(data, dict) and "solver" in data
+                    else "not a free-rod branch set")
+            raise ValueError(f"{str(js)!r}: {what}; BranchSet.load reads the branches.json "
+                             f"of a free-rod trace (format {cls.FORMAT!r})")
+        meta = data["metadata"]
+        scene = build_scene(meta["scene"], meta["scene_name"])
+        problem = problem_for(scene, meta["parameter"], meta["N"], meta["nodes"])
+        bs = cls(scene, meta["parameter"], tuple(meta["range"]), problem)
+        for line in data["branches"]:
+            path = root / line["file"]
+            if not path.is_file():
+                raise ValueError(f"{str(path)!r}: missing (listed in {str(js)!r})")
+            bs.branches.append(Branch.load(path))
+            bs.labels.append(line["label"])
+        for key in ("folds", "branch_points", "maxwell_points", "admissibility_changes",
+                    "endpoints"):
+            setattr(bs, key, cls._numbers_back(data.get(key, [])))
+        bs.metadata = meta
+        return bs
+
+    @staticmethod
+    def _numbers_back(obj):
+        """Undo :func:`elastocap.jsonutil.jsonable` on non-finite floats ("nan", "inf")."""
+        if isinstance(obj, dict):
+            return {k: BranchSet._numbers_back(v) for k, v in obj.items()}
+        if isinstance(obj, list):
+            return [BranchSet._numbers_back(v) for v in obj]
+        if isinstance(obj, str) and obj in ("nan", "inf", "-inf"):
+            return float(obj)
+        return obj
 
 
 def _settings(scene: Scene, lo: float, hi: float, span: float) -> ContinuationSettings:

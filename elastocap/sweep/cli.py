@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 from elastocap.cli_args import load_scene_from_args, scene_arguments
+from elastocap.io import atomic_path, check_output_folder, check_writable_file, write_text
 from elastocap.jsonutil import jsonable
 from elastocap.scene import SceneError, parse_override
 
@@ -116,6 +117,9 @@ def _validate(args):
     experiments = load_experiments(args.experiments) if args.experiments else None
     out = Path(args.out) if args.out else Path("out") / f"sweep-{scene.name}"
     store = Path(args.store) if args.store else out / "sweep.sqlite"
+    # a file, or not writable: refused before any run
+    check_output_folder(out, "--out")
+    check_writable_file(store, "--store")
     try:
         ResultStore.check(store)
     except StoreError as err:
@@ -186,11 +190,12 @@ def run(args) -> int:
     rep = jsonable(result.to_dict())
     out.mkdir(parents=True, exist_ok=True)
     png = out / "phase-diagram.png"
-    plot_phase_diagram(rep, png, experiments=experiments)
+    with atomic_path(png) as tmp:
+        plot_phase_diagram(rep, tmp, experiments=experiments)
     js = out / "sweep.json"
     files = [str(store), str(js), str(png)]
     rep["files"] = files
-    js.write_text(json.dumps(rep, indent=1))
+    write_text(js, json.dumps(rep, indent=1))
     if getattr(args, "json", False):
         print(json.dumps(rep, indent=1))
     else:
