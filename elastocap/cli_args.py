@@ -107,7 +107,7 @@ def impact_estimate(scene: Scene) -> dict:
         est["refusal"] = (
             edge_key,
             edge_val,
-            f"an impact at {n} edges would need about {_gb(memory)} ({frames} frames of "
+            f"an impact at {n:.4g} edges would need about {_gb(memory)} ({frames} frames of "
             f"positions and velocities), above the {_gb(MEMORY_LIMIT)} limit; use fewer "
             "edges, or pass --force",
         )
@@ -124,7 +124,17 @@ def impact_estimate(scene: Scene) -> dict:
     dt = st["dt"]
     steps = num.t_max / dt
     est["dt"], est["steps"] = dt, steps
-    if steps > STEPS_LIMIT:
+    if steps < 2:  # not a resource: a run of one step says nothing
+        auto = "" if num.dt else (
+            f" (the automatic time step of this rod at {n} edges, rod.bending_modulus = "
+            f"{scene.rod.bending_modulus:g})"
+        )
+        est["invalid"] = est["refusal"] = (
+            "numerics.t_max",
+            num.t_max,
+            f"expected t_max >= 2 dt = {2 * dt:.4g}{auto}",
+        )
+    elif steps > STEPS_LIMIT:
         default_t_max = Numerics().t_max
         if num.dt:
             key, val, fix = "numerics.dt", num.dt, "a larger dt (or 0 for automatic)"
@@ -136,7 +146,7 @@ def impact_estimate(scene: Scene) -> dict:
             key,
             val,
             f"an impact would take about {steps:.3g} time steps (t_max = {num.t_max:g}, "
-            f"dt = {dt:.3g} at {n} edges), above the {STEPS_LIMIT:.0e} limit; use {fix}, or "
+            f"dt = {dt:.3g} at {n:.4g} edges), above the {STEPS_LIMIT:.0e} limit; use {fix}, or "
             "pass --force",
         )
     return est
@@ -165,7 +175,7 @@ def statics_estimate(scene: Scene) -> dict:
         refusal = (
             key,
             val,
-            f"the statics would need about {_gb(memory)} at {n} points and up to "
+            f"the statics would need about {_gb(memory)} at {n:.4g} points and up to "
             f"{num.max_steps} continuation steps, above the {_gb(MEMORY_LIMIT)} limit; lower "
             "it, or pass --force",
         )

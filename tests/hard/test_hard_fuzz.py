@@ -173,3 +173,58 @@ def test_quick_folds_on_random_supp_fig5_variants(area, length):
             # the documented flag of a fold the finer resolution does not confirm (README);
             # never a silent NaN value
             assert est == "nan", f
+
+
+# ---------------------------------------------------------------------------------------------
+# extremes: tiny and huge numbers, huge integers. The CLI either refuses with the one-line
+# error naming the key (the one the API's validation or resource estimate names), exit 2,
+# nothing written; or the run is estimated inside the documented limits.
+def _log_uniform(lo_exp, hi_exp):
+    return st.floats(lo_exp, hi_exp).map(lambda e: 10.0**e)
+
+
+_EXTREME = st.one_of(
+    st.tuples(st.just("numerics.dt"), st.one_of(_log_uniform(-308, -2), st.just(5e-324))),
+    st.tuples(st.just("numerics.t_max"), _log_uniform(-308, 300)),
+    st.tuples(st.just("numerics.n_edges"), st.integers(1, 2**70)),
+    st.tuples(st.just("drop.wetted_length"), _log_uniform(-300, 0.6)),
+    st.tuples(st.just("numerics.cheb_points"), st.integers(0, 2**40)),
+    st.tuples(st.just("drop.area"), st.integers(10**300, 10**400)),
+    st.tuples(st.just("rod.bending_modulus"), _log_uniform(-300, 300)),
+)
+
+
+@settings(max_examples=80)
+@given(st.lists(_EXTREME, min_size=1, max_size=3, unique_by=lambda kv: kv[0]),
+       st.sampled_from(["impact", "branches"]))
+def test_extremes_refused_by_key_or_inside_the_limits(tmp_path_factory, over, cmd):
+    import contextlib
+    import io
+
+    from elastocap.cli_args import MEMORY_LIMIT, STEPS_LIMIT, check_resources
+
+    over = dict(over)
+    expect_key = None
+    try:
+        scene = load_scene("supp-fig5", over)
+        est = check_resources(scene, "impact" if cmd == "impact" else "statics")
+    except SceneError as err:
+        expect_key = err.key
+    if expect_key is None:  # accepted: the estimate is finite and inside the limits
+        assert est["memory_bytes"] <= MEMORY_LIMIT
+        if cmd == "impact":
+            assert math.isfinite(est["steps"]) and 1 <= est["steps"] <= STEPS_LIMIT
+        return
+    work = tmp_path_factory.mktemp("fuzz")
+    out, err = io.StringIO(), io.StringIO()
+    argv = [cmd, "supp-fig5", "--out", str(work / "o")]
+    for k, v in over.items():
+        argv += ["--set", f"{k}={v!r}"]
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    msg = err.getvalue()
+    assert code == 2, msg
+    assert out.getvalue() == ""
+    assert msg.count("\n") == 1 and len(msg) < 400, msg
+    assert msg.startswith(f"elastocap: error: {expect_key}: got "), (expect_key, msg)
+    assert list(work.iterdir()) == []

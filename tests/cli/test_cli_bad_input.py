@@ -1,0 +1,149 @@
+"""Every bad input gets the one-line error: key, value, what is allowed, exit code 2, and
+nothing is written. Resource guards refuse a run estimated above the documented limits."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+from elastocap.cli import main
+from elastocap.cli_args import MEMORY_LIMIT, STEPS_LIMIT, impact_estimate
+from elastocap.scene import SceneError, load_scene
+
+BIG = "1" + "0" * 400
+
+
+def _files(path):
+    return sorted(str(p.relative_to(path)) for p in path.rglob("*"))
+
+
+@pytest.fixture
+def inputs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "deep.toml").write_text("a = " + "[" * 3000 + "]" * 3000 + "\n")
+    (tmp_path / "latin1.toml").write_bytes(b"name = \"caf\xe9\"\n[rod]\nlength = 4.6\n")
+    (tmp_path / "exp.toml").write_text(
+        "effects = 3\n[experiment]\ndrop_radius = 1.55e-3\nareal_mass = 0.0518\n"
+        "length = 7e-3\nimpact_distance = 3e-3\nbending_modulus = 1e-6\n"
+    )
+    (tmp_path / "folder").mkdir()
+    return tmp_path
+
+
+# (argv, the key the message starts with, a fragment of what is allowed)
+CASES = [
+    (["show", "supp-fig5", "--set", f"rod.length={BIG}"], "rod.length", "finite number"),
+    (["show", "supp-fig5", "--set", f"numerics.n_edges={BIG}"], "numerics.n_edges", "<= 2147"),
+    (["show", "supp-fig5", "--set", "drop.area=1" + "0" * 5000], "drop.area", "too many digits"),
+    (["show", "supp-fig5", "--set", "drop.area=" + "[" * 3000 + "]" * 3000], "drop.area",
+     "nested too deeply"),
+    (["show", "deep.toml"], "scene", "nested too deeply"),
+    (["show", "latin1.toml"], "scene", "not UTF-8 text (byte 0xe9"),
+    (["show", "exp.toml"], "effects", "expected a table"),
+    (["folds", "supp-fig5", "--check", "folder"], "--check", "this is a folder"),
+    (["impact", "supp-fig5", "--set", "numerics.n_edges=10000000"], "numerics.n_edges", "GB"),
+    (["impact", "supp-fig5", "--set", "numerics.t_max=1e-308"], "numerics.t_max", "t_max >= "),
+    (["impact", "supp-fig5", "--set", "drop.wetted_length=1e-6"], "drop.wetted_length",
+     "7.36e+07 edges"),
+    (["impact", "supp-fig5", "--set", "numerics.dt=1e-10"], "numerics.dt", "time steps"),
+    (["impact", "supp-fig5", "--set", "numerics.t_max=1e12"], "numerics.t_max", "time steps"),
+    (["overlay", "supp-fig5", "--delta", "1e-6:3:2"], "drop.wetted_length", "GB"),
+    (["branches", "supp-fig5", "--set", "numerics.cheb_points=100000"],
+     "numerics.cheb_points", "GB"),
+    (["demo", "--set", "numerics.dt=1e-10"], "numerics.dt", "time steps"),
+    (["overlay", "supp-fig5"], "the following arguments are required: --delta", ""),
+    (["impact", "supp-fig5", "--frames", "1"], "--frames", "from 2 to 200"),
+]
+
+
+@pytest.mark.parametrize("argv,key,allowed", CASES, ids=[" ".join(c[0])[:60] for c in CASES])
+def test_one_line_error_exit_2_nothing_written(inputs, capsys, argv, key, allowed):
+    before = _files(inputs)
+    assert main(argv) == 2
+    cap = capsys.readouterr()
+    assert cap.out == ""
+    assert cap.err.startswith(f"elastocap: error: {key}"), cap.err
+    assert allowed in cap.err
+    assert cap.err.count("\n") == 1 and len(cap.err) < 400
+    assert _files(inputs) == before
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root reads a file whatever its mode")
+def test_unreadable_file(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    p = tmp_path / "s.toml"
+    p.write_text("[rod]\nlength = 1\n")
+    p.chmod(0)
+    assert main(["show", "s.toml"]) == 2
+    assert "scene: got 's.toml'; cannot read the file (Permission denied)" in capsys.readouterr().err
+
+
+def test_unreadable_file_simulated(tmp_path, monkeypatch, capsys):
+    """The same refusal when reading raises (simulated: root reads a mode-000 file)."""
+    from pathlib import Path
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text("[rod]\nlength = 1\n")
+
+    def denied(self):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(Path, "read_bytes", denied)
+    assert main(["show", "s.toml"]) == 2
+    err = capsys.readouterr().err
+    assert err == "elastocap: error: scene: got 's.toml'; cannot read the file (Permission denied)\n"
+
+
+def test_force_lifts_a_resource_refusal_but_not_an_impossible_run(capsys):
+    from elastocap.cli_args import check_resources
+
+    sc = load_scene("supp-fig5", {"numerics.dt": 1e-10})
+    with pytest.raises(SceneError, match="numerics.dt"):
+        check_resources(sc, "impact")
+    assert check_resources(sc, "impact", force=True)["steps"] == pytest.approx(2e12)
+    with pytest.raises(SceneError, match="numerics.t_max"):
+        check_resources(load_scene("supp-fig5", {"numerics.t_max": 1e-308}), "impact", True)
+
+
+def test_memory_estimate_against_a_real_run():
+    """The estimate covers what a run stores: its trajectory arrays (positions, velocities,
+    energies), counted after a real run at a small resolution."""
+    from elastocap.impact import run_impact
+
+    sc = load_scene("supp-fig5", {"numerics.t_max": 2.0, "numerics.accuracy": "draft"})
+    est = impact_estimate(sc)
+    sim = run_impact(sc).simulation
+    stored = sim.positions.nbytes + sim.velocities.nbytes
+    stored += sum(e.nbytes for e in sim.energies.values())
+    assert est["n_edges"] == sim.positions.shape[1] - 1
+    assert est["frames"] == sim.positions.shape[0]
+    assert stored <= est["memory_bytes"] <= 3 * stored + 1e6
+    assert est["steps"] == pytest.approx(sim.t_final / sim.dt, rel=0.05)
+
+
+def test_limits_are_the_documented_ones():
+    assert MEMORY_LIMIT == 2 * 1024**3 and STEPS_LIMIT == 10**8
+    # the built-in scenes at every preset are well inside the limits
+    for name in ("supp-fig5", "fig3-strip", "fig3-experiment"):
+        for acc in ("draft", "default", "publication"):
+            est = impact_estimate(load_scene(name, {"numerics.accuracy": acc}))
+            assert est["refusal"] is None and est["steps"] < STEPS_LIMIT / 10
+
+
+# ------------------------------------------------------------------------------- the API
+def test_api_accepts_numpy_scalars():
+    a = load_scene("supp-fig5", {"numerics.n_edges": np.int64(50), "drop.area": np.float32(1.5),
+                                 "effects.ground": np.bool_(False)})
+    b = load_scene("supp-fig5", {"numerics.n_edges": 50, "drop.area": 1.5,
+                                 "effects.ground": False})
+    assert a.numerics.n_edges == 50 and type(a.numerics.n_edges) is int
+    assert a.digest() == b.digest()
+    assert a.to_json() == b.to_json()  # numpy values saved as plain JSON
+
+
+def test_negative_zero_keys_like_zero():
+    a = load_scene("supp-fig5", {"effects.damping": -0.0})
+    b = load_scene("supp-fig5", {"effects.damping": 0.0})
+    assert math.copysign(1.0, a.effects.damping) == 1.0
+    assert a.digest() == b.digest()
