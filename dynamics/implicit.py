@@ -86,7 +86,6 @@ quadratic-constraint argument.
 
 from __future__ import annotations
 
-import os
 import time
 from types import SimpleNamespace
 
@@ -94,14 +93,14 @@ import numba
 import numpy as np
 
 from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK
+from .cache import dependency_digest, load_module
 from .stepper import (
     _STATUS,
-    _fingerprint,
+    _depends,
     _kernel_ref,
     _result,
     _schedule,
     _validate_run,
-    load_generated,
     stable_dt,
 )
 
@@ -1573,10 +1572,9 @@ def compile_implicit(effects=()):
     refs = tuple(refs)
     if refs in _MODULES:
         return _MODULES[refs]
-    st = os.stat(__file__)
     files = [r[:3] for r in refs] + [("force", *r[3]) for r in refs if r[3] is not None]
-    fp = _fingerprint(files) + f"{__file__}:{st.st_mtime_ns}:{st.st_size}"
-    module = load_generated("_dynamics_implicit", _generate_source(refs), fp)
+    module = load_module("midpoint", _generate_source(refs),
+                         _depends(files) + dependency_digest(["dynamics.implicit"]))
     _MODULES[refs] = module
     return module
 

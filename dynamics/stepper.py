@@ -52,20 +52,14 @@ contact, kicks and bookkeeping ~10% (fig3-strip); outside the loop, the crossing
 and measures of ``elastocap.impact`` take ~2%.  Section 3b of
 ``benchmarks/dynamics_speed.py`` times the runs (``--baseline REV`` beside a revision).
 
-Cache directory: ``$DYNAMICS_CACHE_DIR``, else ``$XDG_CACHE_HOME/elastocap-dynamics``,
-else ``~/.cache/elastocap-dynamics``, else the system temporary directory.
+Generated modules live in the private, content-addressed cache of :mod:`dynamics.cache`.
 """
 
 from __future__ import annotations
 
-import hashlib
 import importlib
-import importlib.util
 import json
 import math
-import os
-import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 
@@ -73,6 +67,7 @@ import numba
 import numpy as np
 
 from .bending import BENDING_WORK_ROWS
+from .cache import dependency_digest, load_module
 from .constraints import SHAKE_FINAL, new_work
 from .effects import KINDS
 from .rod import Rod, kinetic_energy
@@ -85,7 +80,6 @@ __all__ = [
     "stable_dt",
     "DT_BOUND_C",
     "compile_stepper",
-    "cache_dir",
 ]
 
 #: Explicit stability constant of velocity Verlet for DER bending:
@@ -115,26 +109,6 @@ _STATUS = {
     2: ("shake_failed", "inextensibility projection (SHAKE) did not converge"),
     3: ("non_finite", "non-finite state (NaN/inf)"),
 }
-
-
-def cache_dir() -> str:
-    """Directory where generated stepper modules (and numba's cache) live."""
-    cand = [os.environ.get("DYNAMICS_CACHE_DIR")]
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    if xdg:
-        cand.append(os.path.join(xdg, "elastocap-dynamics"))
-    cand.append(os.path.join(os.path.expanduser("~"), ".cache", "elastocap-dynamics"))
-    cand.append(os.path.join(tempfile.gettempdir(), "elastocap-dynamics"))
-    for d in cand:
-        if not d:
-            continue
-        try:
-            os.makedirs(d, exist_ok=True)
-            if os.access(d, os.W_OK):
-                return d
-        except OSError:
-            continue
-    raise OSError(f"no writable cache directory among {[c for c in cand if c]}")
 
 
 def stable_dt(edge_len, mu, B):
@@ -660,43 +634,11 @@ def _generate_source(refs, borrowed=True):
     return "\n".join(L)
 
 
-def _module_closure(names):
-    """Source files of the modules ``names`` and of every module they use, directly or
-    not, within their own top-level packages (a kernel's helpers in another module of its
-    package, e.g. ``elastocap.drop`` for the capillary kernel, are compiled into the
-    stepper, so their change must invalidate it too; numpy, numba and the standard
-    library are left out)."""
-    roots = {n.split(".")[0] for n in names}
-    seen, files, todo = set(), set(), list(names)
-    while todo:
-        name = todo.pop()
-        if name in seen or name.split(".")[0] not in roots:
-            continue
-        seen.add(name)
-        mod = sys.modules.get(name)
-        f = getattr(mod, "__file__", None)
-        if mod is None or not f:
-            continue
-        files.add(os.path.abspath(f))
-        for value in vars(mod).values():
-            used = value.__name__ if isinstance(value, type(sys)) else getattr(
-                value, "__module__", None)
-            if isinstance(used, str):
-                todo.append(used)
-    return files
-
-
-def _fingerprint(refs):
-    """Hash of the files whose change must invalidate a generated stepper: the
+def _depends(refs):
+    """:func:`dynamics.cache.dependency_digest` of what a generated stepper uses: the
     ``dynamics`` kernels and the effect kernels' modules with what they use."""
-    files = _module_closure(["dynamics.bending", "dynamics.constraints", "dynamics.effects",
-                             "dynamics.rod", *(mod for _, mod, _ in refs)])
-    h = hashlib.sha256()
-    h.update(numba.__version__.encode())
-    for f in sorted(files):
-        st = os.stat(f)
-        h.update(f"{f}:{st.st_mtime_ns}:{st.st_size}".encode())
-    return h.hexdigest()
+    return dependency_digest(["dynamics.bending", "dynamics.constraints", "dynamics.effects",
+                              "dynamics.rod", *(mod for _, mod, _ in refs)])
 
 
 _MODULES: dict = {}
@@ -731,7 +673,7 @@ def compile_stepper(effects=(), borrowed=True):
         return _MODULES[key]
     src = _generate_source(key[0], borrowed)
     try:
-        module = load_generated("_dynamics_stepper", src, _fingerprint(key[0]))
+        module = load_module("rattle", src, _depends(key[0]))
     except (ImportError, AttributeError) as err:
         if not borrowed:
             raise
@@ -752,25 +694,6 @@ def _plain_fallback(effects, err):
         stacklevel=3,
     )
     return compile_stepper(effects, borrowed=False)
-
-
-def load_generated(prefix, src, fingerprint):
-    """Write generated source to the cache directory (once, under a name hashed from the
-    source and ``fingerprint``) and import it, so that numba's on-disk cache applies."""
-    digest = hashlib.sha256((src + fingerprint).encode()).hexdigest()[:20]
-    modname = f"{prefix}_{digest}"
-    path = os.path.join(cache_dir(), modname + ".py")
-    if not os.path.exists(path):
-        # write atomically: parallel workers may race on the same file
-        fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), suffix=".tmp")
-        with os.fdopen(fd, "w") as f:
-            f.write(src)
-        os.replace(tmp, path)
-    spec = importlib.util.spec_from_file_location(modname, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[modname] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 # ----------------------------------------------------------------------------- simulate

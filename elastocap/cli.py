@@ -378,6 +378,30 @@ def cmd_sweep(args) -> int:
     return run(args)
 
 
+def cmd_cache(args) -> int:
+    """``cache info`` / ``cache clear``: the generated-stepper cache of dynamics."""
+    from dynamics import cache
+
+    try:
+        if args.action == "clear":
+            n = cache.clear()
+            rep = {"directory": cache.cache_dir(), "removed_modules": n}
+        else:
+            rep = cache.info()
+    except cache.CacheError as err:
+        raise UsageError(str(err)) from None
+    if args.json:
+        _print_json(rep)
+    elif args.action == "clear":
+        print(f"removed {rep['removed_modules']} generated stepper(s) from {rep['directory']}")
+    else:
+        print(f"generated steppers: {rep['directory']}")
+        print(f"  {rep['modules']} module(s), {rep['bytes'] / 2**20:.1f} MB (limit "
+              f"{rep['max_bytes'] / 2**20:.0f} MB, {rep['max_age_days']} days unused)")
+        print(f"  numba's compiled code: {rep['numba_files']}")
+    return 0
+
+
 COMMANDS: dict[str, tuple[Callable, str]] = {
     "scenes": (cmd_scenes, "list the built-in scenes"),
     "show": (cmd_show, "print a validated scene and its derived quantities"),
@@ -388,6 +412,7 @@ COMMANDS: dict[str, tuple[Callable, str]] = {
     "sweep": (cmd_sweep, "phase diagram of impacts over (x, We^1/2) or (x, Delta); resumable"),
     "figures": (cmd_figures, "regenerate the paper's figures"),
     "demo": (cmd_demo, "the quick-start tour on the default scene"),
+    "cache": (cmd_cache, "the cache of compiled time steppers: info, or clear it"),
 }
 
 
@@ -458,6 +483,8 @@ def build_parser() -> argparse.ArgumentParser:
                 metavar="K",
                 help="frames in the PNG strip written with --out (default 8)",
             )
+        if name == "cache":
+            p.add_argument("action", choices=("info", "clear"), help="what to do")
         if name == "figures":
             p.add_argument("--only", metavar="NAME", help="one figure (e.g. supp-fig6)")
             p.add_argument("--fast", action="store_true", help="coarse and quick (for tests)")

@@ -60,13 +60,14 @@ def test_multiplier_predictor_saves_newton_updates(wavy_rod):
     assert free.shake_iterations_max <= 2
 
 
-def test_fingerprint_covers_what_a_kernel_uses_in_its_package(tmp_path, monkeypatch):
+def test_dependency_digest_covers_what_a_kernel_uses_in_its_package(tmp_path, monkeypatch):
     # a kernel whose helper lives in another module of its package: editing the helper
-    # must invalidate the generated stepper (numba's cache of the stepper would not see it)
+    # must change the generated stepper's key (numba's cache of the stepper would not see
+    # it); touching it without a change must not (content, not mtime)
     import os
     import sys
 
-    from dynamics.stepper import _fingerprint, _module_closure
+    from dynamics.cache import dependency_digest, module_closure
 
     pkg = tmp_path / "fpkg"
     pkg.mkdir()
@@ -76,13 +77,14 @@ def test_fingerprint_covers_what_a_kernel_uses_in_its_package(tmp_path, monkeypa
     monkeypatch.syspath_prepend(str(tmp_path))
     __import__("fpkg.kern")
     try:
-        files = _module_closure(["fpkg.kern"])
+        files = module_closure(["fpkg.kern"])
         assert files == {str(pkg / "kern.py"), str(pkg / "helper.py")}  # numpy left out
-        refs = (("force", "fpkg.kern", "k"),)
-        before = _fingerprint(refs)
+        before = dependency_digest(["fpkg.kern"])
         st = os.stat(pkg / "helper.py")
         os.utime(pkg / "helper.py", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
-        assert _fingerprint(refs) != before
+        assert dependency_digest(["fpkg.kern"]) == before
+        (pkg / "helper.py").write_text("def twice(a):\n    return a + a\n")
+        assert dependency_digest(["fpkg.kern"]) != before
     finally:
         for m in ("fpkg.kern", "fpkg.helper", "fpkg"):
             sys.modules.pop(m, None)
