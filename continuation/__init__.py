@@ -41,6 +41,19 @@ SpecialPoint(kind, index, p, u, precision, located, name, data)
 Status codes: MAX_STEPS, PARAMETER_BOUND, STEP_TOO_SMALL, START_FAILED, STOPPED,
 NON_FINITE, LOOP_CLOSED (``Branch.status``; ``Branch.message`` says what to try).
 
+fold_crossings(family, fold, q0, q_target, settings) -> ([(u, p), ...], Branch)
+    The points where the fold curve through a fold crosses q = q_target (starts for a
+    search, and the check of a one-parameter search's folds).
+BranchSearch(problem, continuation_settings, SearchSettings(...), *, starts, seeds, events,
+             stop_on, parameter, accept)
+    Deflated multi-start search for every branch over [p_min, p_max] (an iterator of
+    new branches; ``.run() -> SearchResult``). The problem may supply ``seeds(p)`` and
+    ``deflation_indices``. The completeness argument is in its module docstring
+    (``continuation._search``) and in ``help(BranchSearch)``.
+search_branches(problem, continuation_settings, settings=None, **kw) -> SearchResult
+deflated_newton(problem, u0, p, known=(), *, tol, max_iter, max_step, indices) -> NewtonResult
+point_on_branch(problem, u, p, branch, ...) -> bool
+
 FoldProblem(family, b, c)
     The minimally augmented fold system as a one-parameter problem in q (used by
     continue_fold; exposed for users who drive it themselves).
@@ -88,7 +101,7 @@ from ._branch import (
     SpecialPoint,
 )
 from ._core import continue_branch, locate_fold, switch_branch
-from ._fold import FoldProblem, continue_fold
+from ._fold import FoldProblem, continue_fold, fold_crossings
 from ._linalg import BandedJacobian, inertia_negative
 from ._problem import (
     FiniteDifferenceWarning,
@@ -97,11 +110,22 @@ from ._problem import (
     Problem,
     check_jacobian,
 )
+from ._search import (
+    BranchSearch,
+    NewtonResult,
+    SearchResult,
+    SearchSettings,
+    deflated_newton,
+    point_on_branch,
+    search_branches,
+)
 from ._settings import ContinuationSettings
 
 __all__ = [
     "Problem", "FunctionProblem", "BandedJacobian", "ContinuationSettings",
     "continue_branch", "locate_fold", "switch_branch", "continue_fold", "FoldProblem",
+    "fold_crossings", "BranchSearch", "SearchSettings", "SearchResult", "search_branches",
+    "deflated_newton", "NewtonResult", "point_on_branch",
     "check_jacobian", "inertia_negative", "Branch", "SpecialPoint",
     "FiniteDifferenceWarning", "JacobianError",
     "MAX_STEPS", "PARAMETER_BOUND", "STEP_TOO_SMALL", "START_FAILED", "STOPPED",

@@ -88,6 +88,7 @@ class _Core:
         x = x0.copy()
         fac = None
         prev = math.inf
+        best_x, best_norm = x, math.inf
         rhs = np.empty(n + 1)
         for it in range(max_iter + 1):
             u, p = x[:n], x[n]
@@ -95,19 +96,26 @@ class _Core:
             normF = float(np.max(np.abs(F))) if F.size else 0.0
             if not math.isfinite(normF):
                 return _Corrected(x, it, None, False, "non-finite residual", normF)
+            arc_ok = moore_penrose or abs(float(row @ x - c)) <= 1e-8 * (1.0 + abs(c))
+            if normF < best_norm and arc_ok:
+                best_x, best_norm = x, normF
             arc = 0.0 if moore_penrose else float(row @ x - c)
             if normF <= tol and abs(arc) <= tol * (1.0 + abs(c)):
                 return _Corrected(x, it, fac, True, "", normF)
+            # On failure the best iterate (smallest residual on the arclength constraint) is
+            # returned with its residual: near a branch point the bordered matrix is nearly
+            # singular and rounding makes Newton wander after reaching ~10 newton_tol, which
+            # is accurate enough to locate special points (see _point_at).
             if it == max_iter:
-                return _Corrected(x, it, fac, False,
+                return _Corrected(best_x, it, fac, False,
                                   f"Newton did not converge in {max_iter} iterations "
-                                  f"(max|F|={normF:.2e} > newton_tol={tol:.1e})", normF)
+                                  f"(max|F|={normF:.2e} > newton_tol={tol:.1e})", best_norm)
             # Quadratic convergence from a tangent predictor never lets the
             # residual grow after the first iteration: growth means divergence.
             if it >= 2 and normF > prev:
-                return _Corrected(x, it, fac, False,
+                return _Corrected(best_x, it, fac, False,
                                   f"Newton diverging (max|F| grew {prev:.2e} -> {normF:.2e})",
-                                  normF)
+                                  best_norm)
             prev = normF
             A = bordered(self.ev.J(u, p), self.ev.Fp(u, p), row[:n], row[n])
             fac = factorize(A)

@@ -172,3 +172,59 @@ def continue_fold(
     br.metadata["problem"] = getattr(base, "name", type(base).__name__)
     br.metadata["fold_curve"] = {"p0": float(fold.p), "q0": q0, "parameter": parameter}
     return br
+
+
+def fold_crossings(
+    family: Callable,
+    fold: SpecialPoint,
+    q0: float,
+    q_target: float,
+    settings: ContinuationSettings,
+    *,
+    parameter: str = "q",
+    p_bounds: tuple[float, float] | None = None,
+) -> tuple[list, Branch]:
+    """Every point where the fold curve through ``fold`` crosses ``q = q_target``.
+
+    Continues the fold curve (:func:`continue_fold`) both ways from ``(fold, q0)`` within
+    ``[settings.p_min, settings.p_max]`` (bounds on q, which must contain ``q_target``) and
+    locates its crossings of ``q_target`` (an event). Each crossing is a fold of
+    ``family(q_target)``: a start for :class:`BranchSearch` that finds the branches through
+    folds the one-parameter seeds missed, and an independent check of the folds a
+    one-parameter search reports.
+
+    ``p_bounds=(lo, hi)`` stops the curve where the fold parameter ``p`` leaves
+    ``[lo, hi]`` (crossings outside the one-parameter range are of no use, and the curve
+    beyond may be long).
+
+    Returns
+    -------
+    (list of (u, p), Branch)
+        The states and fold parameters at ``q = q_target`` (the starting fold itself when
+        ``q0 == q_target``), and the fold curve.
+    """
+    if not settings.p_min <= q_target <= settings.p_max:
+        raise ValueError(f"q_target={q_target!r} is outside [p_min, p_max] = "
+                         f"[{settings.p_min!r}, {settings.p_max!r}] of the settings")
+    name = "q_target"
+    n = fold.u.size
+    events = {name: lambda U, q: q - q_target}
+    stop = []
+    if p_bounds is not None:
+        lo, hi = float(p_bounds[0]), float(p_bounds[1])
+        events["p_below_range"] = lambda U, q: U[n] - lo
+        events["p_above_range"] = lambda U, q: hi - U[n]
+        stop = ["p_below_range", "p_above_range"]
+    fc = continue_fold(family, fold, q0, settings, parameter=parameter, events=events,
+                       stop_on=stop)
+    out = []
+    for sp in fc.points("event"):
+        if sp.name == name and sp.located and sp.u is not None and (
+                p_bounds is None or p_bounds[0] <= sp.u[n] <= p_bounds[1]):
+            out.append((sp.u[:n].copy(), float(sp.u[n])))
+    if fc.u is not None:  # a curve point exactly on q_target is not an event crossing
+        for i in np.nonzero(fc.p == q_target)[0]:
+            u, p = fc.u[i, :n], float(fc.u[i, n])
+            if not any(abs(p - pp) <= 1e-12 * (1 + abs(p)) for _, pp in out):
+                out.append((u.copy(), p))
+    return out, fc
