@@ -1,13 +1,10 @@
-"""Energy barrier of the strip of Fig 3 (issue 8): table over x and Delta, bistability
-window, convergence in n, timings.
+"""Energy barrier of the strip of Fig 3: table over x and Delta, convergence in n, timings.
 
     python3 benchmarks/strip_barrier.py [--fast] [--out DIR] [--n N] [--n-fine M]
 
-Writes ``strip_barrier.json`` (one record per (x, Delta), the windows) and prints a table;
-about 5 min on 2 shared cores (``--fast``: one point, 10 s). Small
-dense LAPACK calls (101 x 101 eigh) run ~100x slower with multi-threaded OpenBLAS on a
-loaded 2-core machine (measured 1.8 ms single-threaded against 176 ms), hence one thread
-(``elastocap.strip._blas.blas_threads``).
+Writes ``strip_barrier.json`` (one record per (x, Delta)) and prints a table; about 5 min on
+2 shared cores (``--fast``: one point, 10 s). The string method with Newton refinement
+(:func:`elastocap.strip.barrier.barrier`) at n edges; the three states carried to n_fine.
 """
 
 from __future__ import annotations
@@ -18,27 +15,14 @@ import os
 import sys
 import time
 
+from threadpoolctl import threadpool_limits
+
 from elastocap.scene import load_scene
-from elastocap.strip._blas import blas_threads
-from elastocap.strip.barrier import flat_energy, kinetic_energy
-from elastocap.strip.discrete import (
-    DiscreteStrip,
-    minimize_energy,
-    prolong,
-    refine,
-)
-from elastocap.strip.mep import barrier, is_encapsulated
-from elastocap.strip.windows import branch_window
+from elastocap.strip.barrier import barrier, kinetic_energy
+from elastocap.strip.model import DiscreteStrip, flat_energy, is_encapsulated
+from elastocap.strip.solve import minimize_energy, prolong, refine
 
 L, AREA, GAMMA = 14.3, 0.36, 40.0
-
-
-def window(x, n, **kw):
-    """Delta range of the open branch (continued up from Delta = 0.6) and of the wrapped
-    branch (continued down from 1.6), each to 1e-3 (elastocap.strip.windows.branch_window);
-    a branch also ends where the state changes kind (open <-> encapsulated)."""
-    w = branch_window(DiscreteStrip(n, L, x, 0.6, AREA, GAMMA), **kw)
-    return w.to_dict()
 
 
 def barrier_row(sc, x, d, n, n_fine=None):
@@ -69,7 +53,7 @@ def barrier_row(sc, x, d, n, n_fine=None):
 
 
 def main(out_dir="out/strip_barrier", fast=False, n=143, n_fine=429):
-    """Table of barriers and the bistability windows; returns (rows, windows).
+    """Table of barriers; returns the rows.
 
     n = 143 (h = 0.1): with x a multiple of 0.5 and Delta of 0.1, the contact lines sit at
     nodes or at mid-edge, and stay there at n_fine = 3 n (the error constant of the
@@ -93,18 +77,9 @@ def main(out_dir="out/strip_barrier", fast=False, n=143, n_fine=429):
               f"barrier={row['barrier']:8.4f} (n={fine.get('n', '-')}: "
               f"{fine.get('barrier', float('nan')):8.4f}) Ek={row['kinetic']:7.2f} "
               f"t={row['time']:5.1f}s", flush=True)
-    windows = []
-    if not fast:
-        for x in (1.5, 2.0, 3.0, 4.0):
-            t = time.perf_counter()
-            w = window(x, 100)
-            w.update(time=time.perf_counter() - t)
-            windows.append(w)
-            print(f"x={x}: open branch up to Delta = {w['open_max']:.3f}, wrapped branch down "
-                  f"to Delta = {w['wrapped_min']:.3f} (n = 100)", flush=True)
     with open(os.path.join(out_dir, "strip_barrier.json"), "w") as f:
-        json.dump({"rows": rows, "windows": windows}, f, indent=1)
-    return rows, windows
+        json.dump({"rows": rows}, f, indent=1)
+    return rows
 
 
 if __name__ == "__main__":
@@ -114,6 +89,6 @@ if __name__ == "__main__":
     ap.add_argument("--n", type=int, default=143)
     ap.add_argument("--n-fine", type=int, default=429)
     a = ap.parse_args()
-    with blas_threads(1):
+    with threadpool_limits(limits=1, user_api="blas"):
         main(a.out, a.fast, a.n, a.n_fine)
     sys.exit(0)

@@ -1,10 +1,10 @@
-"""Lowest barriers over every traced branch (elastocap.strip.barrier_graph) at n = 143.
+"""Lowest barriers over every traced branch (elastocap.strip.barrier.barrier_graph), n = 143.
 
-For x = 3 and 4 l_eg, all branches in Delta are traced (elastocap.strip.contact_branches),
+For x = 3 and 4 l_eg, all branches in Delta are traced (elastocap.strip.trace),
 then at each Delta of the table every minimum and saddle they cross is listed with the
 saddles' connections and the lowest (minimax) barrier of each open minimum. Prints the
 table the README quotes and, for comparison, the string method's barrier
-(elastocap.strip.mep.barrier) at the same (x, Delta, n). About 5-10 min on 2 shared cores.
+(elastocap.strip.barrier.barrier) at the same (x, Delta, n). About 5-10 min on 2 shared cores.
 
     python3 benchmarks/strip_barrier_graph.py [--n 143] [--fast]
 """
@@ -15,11 +15,9 @@ import argparse
 import time
 
 from elastocap.scene import load_scene
-from elastocap.strip._blas import blas_threads
-from elastocap.strip.barrier_graph import barrier_graph
-from elastocap.strip.contact_branches import trace_contact_branches
-from elastocap.strip.discrete import discrete_strip_for
-from elastocap.strip.mep import barrier
+from elastocap.strip.barrier import barrier, barrier_graph
+from elastocap.strip.model import discrete_strip_for
+from elastocap.strip.trace import trace_contact_branches
 
 CASES = {3.0: (0.9, 1.1, 1.25), 4.0: (1.1, 1.4)}
 FAST = {3.0: (1.1,)}
@@ -37,8 +35,7 @@ def main(n=143, fast=False):
         t_trace = time.perf_counter() - t0
         for d in deltas:
             g = barrier_graph(bs, d)
-            with blas_threads(1):
-                ref = barrier(discrete_strip_for(sc, n).with_(delta=d))
+            ref = barrier(discrete_strip_for(sc, n).with_(delta=d))
             mins = ", ".join(f"{m['energy']:.4f} {'enc' if m['encapsulated'] else 'open'}"
                              for m in g.minima)
             sads = ", ".join(f"{s['energy']:.4f}: {s['joins'][0]}-{s['joins'][1]}"

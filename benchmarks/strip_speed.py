@@ -1,47 +1,58 @@
-"""Strip statics (fig3-strip) speed and accuracy (run: python3 benchmarks/strip_speed.py).
+"""Speed of `elastocap branches fig3-strip` (every branch, every contact topology).
 
-1. trace_strip_branches at x = 2 per resolution: median wall time of 3 runs after a
-   warm-up, continuation steps, the window's event values.
-2. Lift-off point s_c of the wrapped state (x = 2, Delta = 1.16) against N per segment,
-   error against N = 28: spectral convergence.
-Prints tables; the README text quotes them.
+    python3 benchmarks/strip_speed.py [--x 2] [--n N] [--no-refine] [--profile]
+
+Times :func:`elastocap.strip.trace.trace_contact_branches` at the scene's default resolution
+(n = 198 edges, refined run at 1.5 n for the error estimates) for each drop position x, as
+`elastocap branches fig3-strip --set drop.distance_from_end=X` runs it, and prints the wall
+time, the number of continuation steps, of contact events and the window with its error
+estimate. ``--profile`` prints the 25 most expensive functions (cProfile, cumulative).
 """
 
+from __future__ import annotations
 
-import numpy as np
-from wp_common import median_time
+import argparse
+import cProfile
+import pstats
+import sys
+import time
 
 from elastocap.scene import load_scene
-from elastocap.statics.branches import newton
-from elastocap.strip.branches import refine_state, seeds, strip_problem_for, trace_strip_branches
+from elastocap.strip.trace import trace_contact_branches
+
+
+def run(x, n=None, refine=True):
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": float(x)})
+    t = time.perf_counter()
+    bs = trace_contact_branches(sc, n=n, refine=refine)
+    wall = time.perf_counter() - t
+    steps = sum(len(s.delta) for br in bs.branches for s in br.segments)
+    w = bs.window
+    print(f"x = {x:g}: n = {bs.n} (refined {bs.metadata['n_edges_refined']}), "
+          f"{len(bs.branches)} traced directions, {steps} points, {len(bs.events)} events, "
+          f"{wall:.1f} s; open_max {w['open_max']['value']} ± "
+          f"{w['open_max']['error_estimate']:.2g}, encapsulated_min "
+          f"{w['encapsulated_min']['value']} ± {w['encapsulated_min']['error_estimate']:.2g}",
+          flush=True)
+    return wall
 
 
 def main():
-    scene = load_scene("fig3-strip", {"drop.distance_from_end": 2.0})
-    print("| N | time | steps | lift_off_at_S1 | touchdown |")
-    print("|---:|---:|---:|---:|---:|")
-    for N in (12, 14, 20):
-        t, bs = median_time(lambda N=N: trace_strip_branches(scene, N=N))
-        steps = sum(len(b) for b in bs.branches)
-        ev = {e["kind"]: e["value"] for e in bs.endpoints if e["kind"] != "endpoint"}
-        print(f"| {N} | {t:.2f} s | {steps} | {ev.get('lift_off_at_S1', np.nan):.10f} | "
-              f"{ev.get('touchdown', np.nan):.10f} |")
-    sc = load_scene("fig3-strip", {"drop.distance_from_end": 2.0, "drop.wetted_length": 1.16})
-    P16 = strip_problem_for(sc, N=16)
-    u16 = next(v for v in (newton(P16, s, 1.16, 1e-12, max_iter=40) for s in seeds(P16))
-               if v is not None and v[-1] < P16.s1)
-
-    def lift_off(N):
-        P = strip_problem_for(sc, N=N)
-        _, v = refine_state(P16, u16, (N, N, N))
-        return newton(P, v, 1.16, 1e-12, max_iter=40)[-1]
-
-    ref = lift_off(28)
-    print("\n| N per segment | s_c error |")
-    print("|---:|---:|")
-    for N in (4, 6, 8, 10, 12, 14, 16):
-        print(f"| {N} | {abs(lift_off(N) - ref):.1e} |")
-    print(f"\ns_c(N=28) = {ref:.13f}")
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--x", type=float, nargs="+", default=[2.0])
+    ap.add_argument("--n", type=int, default=None)
+    ap.add_argument("--no-refine", action="store_true")
+    ap.add_argument("--profile", action="store_true")
+    a = ap.parse_args()
+    for x in a.x:
+        if a.profile:
+            pr = cProfile.Profile()
+            pr.enable()
+            run(x, a.n, not a.no_refine)
+            pr.disable()
+            pstats.Stats(pr, stream=sys.stdout).sort_stats("cumulative").print_stats(25)
+        else:
+            run(x, a.n, not a.no_refine)
 
 
 if __name__ == "__main__":

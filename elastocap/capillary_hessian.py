@@ -21,7 +21,7 @@ their edges (``P_0 = (1 - w1) x_{i1} + w1 x_{i1+1}``, likewise ``P_{p+1}``).  Wi
 ``gd, Hd`` the derivatives of ``d`` (nonzero on ``P_0, P_{p+1}`` only), ``gA`` and the
 constant ``HA`` those of ``A0`` (``HA`` couples polygon neighbours, including the closing
 chord ``P_{p+1} -> P_0``).  The reference, dense in numpy, is
-:func:`elastocap.strip.discrete.capillary_hessian_nodes`; the tests check this kernel
+:func:`elastocap.strip.model.capillary_hessian_nodes`; the tests check this kernel
 against it and against finite differences of :func:`elastocap.capillary.capillary_kernel`.
 
 Split

@@ -99,20 +99,15 @@ def _trace(args, scene=None):
     check_resources(scene, "statics", getattr(args, "force", False))
     prange = tuple(args.range) if args.range else None
     if scene.effects.gravity > 0 or scene.effects.ground:
-        if args.param == "drop.wetted_length" and scene.effects.ground:
-            # the strip on the ground, every contact topology (discrete strip)
-            from elastocap.strip.contact_branches import trace_contact_branches
+        # the strip on the ground: one model (the discrete strip, every contact topology)
+        from elastocap.strip.trace import trace_contact_branches
 
-            progress = None
-            if not args.json:
-                def progress(label, br):
-                    print(f"  traced {label}: {len(br.segments)} segments, {br.status}",
-                          file=sys.stderr)
-            return trace_contact_branches(scene, args.param, prange, progress=progress)
-        # other parameters: one contact topology, the lift-off point as a free boundary
-        from elastocap.strip.branches import trace_strip_branches
-
-        return trace_strip_branches(scene, args.param, prange)
+        progress = None
+        if not args.json:
+            def progress(label, br):
+                print(f"  traced {label}: {len(br.segments)} segments, {br.status}",
+                      file=sys.stderr)
+        return trace_contact_branches(scene, args.param, prange, progress=progress)
     return trace_branches(scene, args.param, prange)
 
 
@@ -162,8 +157,6 @@ def cmd_branches(args) -> int:
         paths = [p for p in folder.files if p.name != "branches.png"]
     if type(bs).__name__ == "ContactBranchSet":
         from elastocap.strip.plot import plot_contact_branch_set as plot
-    elif type(bs).__name__ == "StripBranchSet":
-        from elastocap.strip.plot import plot_strip_branch_set as plot
     else:
         plot = plot_branch_set
     paths.append(folder.savefig(lambda path: plot(bs, path), "branches.png"))

@@ -73,13 +73,15 @@ def test_fig4_floppy_encapsulation(figs):
     assert s["fig4B"]["outcome"] == "encapsulated" == s["fig4B"]["companion_outcome"]
 
 
-def test_energy_barrier_band(figs):
+def test_energy_barrier_string_and_graph_agree(figs):
     out, _ = figs
     d = json.loads((out / "energy_barrier.json").read_text())
     assert d["not_handled"]  # the limits are written into the output, not hidden
-    # x = 2 l_eg: the lifted wrapped state exists for 0.924 < Delta < 1.278 (strip statics)
-    lo, hi = d["x2"]["window"]
-    assert lo == pytest.approx(0.92394, abs=1e-3) and hi == pytest.approx(1.27773, abs=1e-3)
+    # x = 3, Delta = 1.1, n = 60: the string method's saddle and the lowest barrier over
+    # every traced saddle are independent searches; they agree to round-off (0.92459)
+    (row,) = d["rows"]
+    (g,) = d["graph"]
+    assert row["status"] == "ok" and abs(row["barrier"] - g["lowest_barrier"]) < 1e-10
 
 
 def test_every_json_record_says_what_made_it(figs):

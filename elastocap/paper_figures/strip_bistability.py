@@ -2,7 +2,7 @@
 
 For each drop position x / l_eg, every equilibrium branch of the discrete strip on the
 ground is traced in Delta with all contact topologies
-(:func:`elastocap.strip.contact_branches.trace_contact_branches`: seeds from a deposition
+(:func:`elastocap.strip.trace.trace_contact_branches`: seeds from a deposition
 and from the folded strip, pseudo-arclength continuation through lift-offs, touch-downs
 and folds, all located), giving
 
@@ -10,23 +10,26 @@ and folds, all located), giving
 * ``wrapped_min``: the smallest Delta of a stable encapsulated state.
 
 Both are mapped to We^(1/2) with the scene's spreading law, (Delta - Delta0) / (2 R c), and
-drawn over the runs and the boundary of the damped dynamic phase diagram read from
-``docs/img/fig3d.json`` (``elastocap figures --only fig3d``); without that file the static
-band is drawn alone and the title says so. Each x is computed at two resolutions; an end
-whose two values differ by more than ``TOL_DELTA`` is drawn hollow and listed in the JSON
-under ``unsettled``.
+drawn over the runs and the boundary of the damped dynamic phase diagram: a ``fig3d.json``
+written by ``elastocap figures --only fig3d`` (the input file ``fig3d``; by default the
+``fig3d.json`` in the output folder, which ``elastocap figures`` writes just before this
+figure). Nothing is read from the repository, so the figure regenerates from an installed
+package; without a dynamic diagram the static band is drawn alone and the title says so.
+Each x is computed at two resolutions; an end whose two values differ by more than
+``TOL_DELTA`` is drawn hollow and listed in the JSON under ``unsettled``.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import sys
 from pathlib import Path
 
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
-from elastocap.strip._blas import blas_threads
-from elastocap.strip.contact_branches import trace_contact_branches
+from elastocap.strip.trace import trace_contact_branches
 
 #: Two resolutions whose ends differ by more than this (in Delta, units of l_eg) leave the
 #: end unsettled: 0.01 is 0.035 in We^(1/2) for fig3-strip, half the bracket width (0.0625)
@@ -42,31 +45,28 @@ FAST_N = (50, 100)
 #: Delta scanned (l_eg): 0.5 is below Delta0 = 0.594 of fig3-strip (We^(1/2) < 0: no
 #: impact spreads less), 2.2 is We^(1/2) = 5.7, beyond the dynamic sweep's 4.
 D_LO, D_HI = 0.5, 2.2
-_ROOT = Path(__file__).resolve().parents[2]
 
 
-def _default_fig3d() -> Path:
-    return _ROOT / "docs" / "img" / "fig3d.json"
+def _dynamic_source(path: Path) -> dict:
+    """What the figure drew the dynamic diagram from: file name and content digest."""
+    return {"file": path.name, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
 
 
-def _shown(path: Path) -> str:
-    """The path as recorded: relative to the repository when inside it (reproducible)."""
-    try:
-        return str(Path(path).resolve().relative_to(_ROOT))
-    except ValueError:
-        return str(path)
-
-
-def compute(scene, xs, ns, tol=TOL_DELTA) -> list[dict]:
+def compute(scene, xs, ns, tol=TOL_DELTA, progress=True) -> list[dict]:
     """All branches at each x (resolution ``ns[0]``, refined at ``ns[1]``) and the window
-    ends mapped to We^(1/2); one :func:`summarize` record per x."""
+    ends mapped to We^(1/2); one :func:`summarize` record per x. ``progress`` prints one
+    line per x to stderr."""
     rows = []
-    with blas_threads(1):
-        for x in xs:
-            sc = scene.with_overrides({"drop.distance_from_end": float(x)})
-            bs = trace_contact_branches(sc, prange=(D_LO, min(D_HI, 1.95 * x)), n=ns[0],
-                                        n_refined=ns[1])
-            rows.append(summarize(x, bs, scene.spreading, tol))
+    for k, x in enumerate(xs):
+        sc = scene.with_overrides({"drop.distance_from_end": float(x)})
+        bs = trace_contact_branches(sc, prange=(D_LO, min(D_HI, 1.95 * x)), n=ns[0],
+                                    n_refined=ns[1])
+        rows.append(summarize(x, bs, scene.spreading, tol))
+        if progress:
+            r = rows[-1]
+            print(f"  strip-bistability {k + 1}/{len(xs)}: x = {x:g}, open_max "
+                  f"{r['open_max']:.4f}, wrapped_min {r['wrapped_min']:.4f} "
+                  f"({r['wall_time_s']:.0f} s)", file=sys.stderr)
     return rows
 
 
@@ -156,8 +156,12 @@ def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[P
     fast : bool
         One x at coarse resolution (~5 s) instead of the full grid (~12 min).
     fig3d : str or Path, optional
-        The dynamic phase diagram's JSON; default ``docs/img/fig3d.json`` of the repository.
+        The dynamic phase diagram's JSON (``elastocap figures --only fig3d``); default
+        ``out_dir/fig3d.json`` when it exists.
     """
+    if fig3d is not None and not Path(fig3d).is_file():
+        raise FileNotFoundError(f"fig3d: got {str(fig3d)!r}; expected the JSON written by "
+                                "elastocap figures --only fig3d")
     scene = load_scene("fig3-strip")
     xs, ns = (FAST_X, FAST_N) if fast else (FULL_X, FULL_N)
     rows = compute(scene, xs, ns)
@@ -170,7 +174,7 @@ def redraw(out_dir, fig3d: str | Path | None = None) -> list[Path]:
     The static rows and their settings are read back from ``out_dir``'s
     ``strip_bistability.json`` (written by :func:`main`, which the statics alone make: the
     dynamics do not enter them); the PNG and the JSON are rewritten with ``fig3d``.
-    ``python3 -m elastocap.paper_figures.strip_bistability --redraw docs/img``.
+    ``python3 -m elastocap.paper_figures.strip_bistability DIR --redraw --fig3d FILE``.
     """
     out = Path(out_dir)
     old = json.loads((out / "strip_bistability.json").read_text())
@@ -193,7 +197,10 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
 
     out.mkdir(parents=True, exist_ok=True)
     sp = scene.spreading
-    path = Path(fig3d) if fig3d is not None else _default_fig3d()
+    path = Path(fig3d) if fig3d is not None else out / "fig3d.json"
+    if fig3d is not None and not path.is_file():
+        raise FileNotFoundError(f"fig3d: got {str(path)!r}; expected the JSON written by "
+                                "elastocap figures --only fig3d")
     dyn = json.loads(path.read_text()) if path.is_file() else None
     what = (f"static window (discrete strip, all contact topologies, n = {ns[0]} and "
             f"{ns[1]}, folds located) → We$^{{1/2}}$ by the spreading law")
@@ -231,7 +238,7 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
         "tolerance_delta": TOL_DELTA,
         "spreading": {"drop_radius": sp.drop_radius, "delta0": sp.delta0,
                       "coefficient": sp.coefficient},
-        "dynamic_diagram": _shown(path) if dyn is not None else None,
+        "dynamic_diagram": _dynamic_source(path) if dyn is not None else None,
         "notes": [
             "open_max: the largest Delta of a stable, admissible open state on any traced "
             "branch (a located fold or contact fold); wrapped_min: the smallest Delta of a "
@@ -256,8 +263,12 @@ if __name__ == "__main__":
     import argparse
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--redraw", metavar="DIR", required=True,
-                    help="redraw DIR/strip_bistability.png over the current dynamic diagram")
-    ap.add_argument("--fig3d", default=None, help="the dynamic diagram's JSON")
+    ap.add_argument("out", metavar="DIR", help="output folder")
+    ap.add_argument("--redraw", action="store_true",
+                    help="redraw DIR/strip_bistability.png without recomputing the statics")
+    ap.add_argument("--fast", action="store_true", help="one x, coarse (the tests)")
+    ap.add_argument("--fig3d", default=None,
+                    help="the dynamic diagram's JSON (default DIR/fig3d.json if present)")
     a = ap.parse_args()
-    print(", ".join(str(p) for p in redraw(a.redraw, a.fig3d)))
+    paths = redraw(a.out, a.fig3d) if a.redraw else main(a.out, a.fast, a.fig3d)
+    print(", ".join(str(p) for p in paths))

@@ -1,4 +1,4 @@
-"""Drawing strip branches: the encapsulation measure against the parameter, with shapes."""
+"""Drawing the strip's branches: energy and turning against Delta, folds, window, shapes."""
 
 from __future__ import annotations
 
@@ -6,62 +6,13 @@ from pathlib import Path
 
 import numpy as np
 
-from elastocap.strip.shape import strip_full_shape
+from elastocap.strip.model import discrete_strip_for, flat_energy, strip_and_interface
 
-__all__ = ["plot_contact_branch_set", "plot_strip_branch_set"]
-
-
-def plot_strip_branch_set(bs, path=None, y="measure", insets=3):
-    """Branches of a :class:`~elastocap.strip.branches.StripBranchSet` (solid stable,
-    dashed unstable), topology endpoints (o), folds (x), and a few shapes on the ground.
-
-    Returns the matplotlib figure; writes it to ``path`` when given.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (ax, axs) = plt.subplots(1, 2, figsize=(10, 4), gridspec_kw={"width_ratios": [3, 2]})
-    for b, br in enumerate(bs.branches):
-        if not len(br):
-            continue
-        yv = br.observables[y]
-        stable = br.stability == 0
-        for mask, ls in ((stable, "-"), (~stable, "--")):
-            yy = np.where(mask, yv, np.nan)
-            ax.plot(br.p, yy, ls, color=f"C{b % 10}", label=bs.labels[b] if ls == "-" else None)
-    for f in bs.folds:
-        ax.plot(f["value"], f["measure"], "kx")
-    for e in bs.endpoints:
-        if e["kind"] != "endpoint":
-            ax.plot(e["value"], e["measure"], "o", mfc="none", color="k")
-            ax.annotate(e["kind"], (e["value"], e["measure"]), fontsize=7)
-    ax.set_xlabel(bs.parameter)
-    ax.set_ylabel(y)
-    ax.set_title(f"{bs.scene.name}: lifted-strip equilibria (o: topology change)", fontsize=9)
-    pr = bs.problem
-    saved = dict(pr.params)
-    for b, br in enumerate(bs.branches):
-        for i in np.linspace(0, len(br) - 1, min(insets, len(br))).astype(int):
-            pr.set(bs.parameter, float(br.p[i]))
-            shp = strip_full_shape(pr, br.u[i])
-            rod, iface = shp["rod"], shp["interface"]
-            axs.plot(rod[:, 0], rod[:, 1], color=f"C{b % 10}", lw=1)
-            axs.plot(iface[:, 0], iface[:, 1], color="tab:blue", lw=0.7)
-    pr.params.update(saved)
-    axs.axhline(0.0, color="0.5", lw=0.8)
-    axs.set_xlim(-3, 2.5)
-    axs.set_aspect("equal")
-    axs.set_title("shapes (lift-off point at x = 0)", fontsize=9)
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(Path(path), dpi=110)
-    return fig
+__all__ = ["plot_contact_branch_set"]
 
 
 def plot_contact_branch_set(bs, path=None, insets=3):
-    """Branches of a :class:`~elastocap.strip.contact_branches.ContactBranchSet`.
+    """Branches of a :class:`~elastocap.strip.trace.ContactBranchSet`.
 
     Left: energy above the flat state against Delta (solid stable, dashed unstable, grey
     where the strip crosses itself or the interface crosses it), smooth folds (x), contact
@@ -110,9 +61,6 @@ def plot_contact_branch_set(bs, path=None, insets=3):
     am.set_ylabel("theta(L) / pi")
     am.set_title(f"stable open up to {_fmt(w, 'open_max')}, stable encapsulated from "
                  f"{_fmt(w, 'encapsulated_min')}", fontsize=8)
-    from elastocap.strip.contact_branches import strip_and_interface
-    from elastocap.strip.discrete import discrete_strip_for
-
     strip = discrete_strip_for(bs.scene, bs.n)
     for b, br in enumerate(bs.branches):
         U = [u for s in br.segments for u in s.u]
@@ -133,8 +81,6 @@ def plot_contact_branch_set(bs, path=None, insets=3):
 
 
 def _flat(bs, delta):
-    from elastocap.strip.barrier import flat_energy
-
     d = bs.scene.drop
     return flat_energy(d.area, d.line_tension, delta)
 

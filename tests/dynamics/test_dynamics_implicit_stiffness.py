@@ -29,7 +29,7 @@ from dynamics.implicit import (
 from dynamics.stepper import RestCriterion
 from elastocap.capillary import Capillary, capillary_kernel
 from elastocap.capillary_hessian import capillary_stiffness, stiffness_dense
-from elastocap.strip.discrete import capillary_hessian_nodes
+from elastocap.strip.model import capillary_hessian_nodes
 
 # ----------------------------------------------------------------------------- the drop
 

@@ -1,4 +1,4 @@
-"""The discrete strip on the ground (elastocap.strip.discrete): the same energy as the
+"""The discrete strip on the ground (elastocap.strip.model, .solve): the same energy as the
 dynamic model, exact derivatives, closed forms, and second-order convergence to the
 spectral solver where its topology applies. Tolerances are written next to each assertion."""
 
@@ -8,23 +8,20 @@ import math
 
 import numpy as np
 import pytest
+from spectral_strip import StripProblem, seeds, shape_at, strip_problem_for
 
 from dynamics.bending import bending_energy, bending_gradient
 from elastocap.capillary import capillary_kernel
 from elastocap.drop import capillary_energy_and_gradient
 from elastocap.scene import load_scene
 from elastocap.statics.branches import newton
-from elastocap.strip.branches import seeds, strip_problem_for
-from elastocap.strip.discrete import (
+from elastocap.strip.model import (
     DiscreteStrip,
     capillary_hessian_nodes,
     discrete_strip_for,
     flat_state,
-    minimize_energy,
-    solve_equilibrium,
 )
-from elastocap.strip.problem import StripProblem
-from elastocap.strip.shape import shape_at
+from elastocap.strip.solve import minimize_energy, solve_equilibrium
 
 L = 14.3
 
@@ -240,9 +237,6 @@ def test_open_state_at_large_x_is_stable_with_positive_reactions():
 
 
 def test_scene_default_resolution_and_bad_values_named():
-    from elastocap.scene import load_scene
-    from elastocap.strip.discrete import DiscreteStrip, discrete_strip_for
-
     assert discrete_strip_for(load_scene("fig3-strip")).n == 198  # as the impact resolves it
     for kw, name in ((dict(area=-0.36), "area"), (dict(B=0.0), "B"), (dict(q=-1.0), "q")):
         args = {**dict(n=100, L=14.3, x_end=2.0, delta=1.16, area=0.36, gamma=40.0), **kw}

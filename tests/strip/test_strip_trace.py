@@ -1,10 +1,11 @@
 """All branches of the strip on the ground in Delta, every contact topology
-(elastocap.strip.contact_branches; the command `elastocap branches fig3-strip`).
+(elastocap.strip.trace; the command `elastocap branches fig3-strip`).
 
-Checked against independent computations: the string method's saddle and the descent's
-open state (elastocap.strip.mep), the contact-point geometry (a kink sits where a contact
-point is on a node), the cap model (the chord at the end of a wrapped branch). Tolerances
-are written next to each assertion."""
+Checked against independent computations: Newton and descent from the traced states, the
+string method's saddle and the descent's open state (elastocap.strip.barrier,
+elastocap.strip.solve), the contact-point geometry (a kink sits where a contact point is on
+a node), the cap model (the chord at the end of a wrapped branch). Tolerances are written
+next to each assertion."""
 
 from __future__ import annotations
 
@@ -16,10 +17,15 @@ import pytest
 from continuation import ContinuationSettings
 from elastocap.cli import main
 from elastocap.scene import SceneError, load_scene
-from elastocap.strip.contact_branches import trace_contact_branches
-from elastocap.strip.discrete import DiscreteStrip, discrete_strip_for, solve_equilibrium
-from elastocap.strip.discrete_branches import _CHORD_STOP, _DEFAULTS, trace_discrete_branch
-from elastocap.strip.mep import barrier, open_state, wrapped_state
+from elastocap.strip.barrier import barrier, barrier_graph, lowest_barriers
+from elastocap.strip.model import DiscreteStrip, discrete_strip_for, is_encapsulated
+from elastocap.strip.solve import open_state, solve_equilibrium, wrapped_state
+from elastocap.strip.trace import (
+    CHORD_STOP,
+    DEFAULTS,
+    trace_contact_branches,
+    trace_discrete_branch,
+)
 
 L, A, GAMMA = 14.3, 0.36, 40.0
 
@@ -51,7 +57,7 @@ def _states_at(bs, delta):
 
 def test_unstable_branch_passes_through_the_string_method_saddle(x3):
     # The index-1 branch traced by continuation and the saddle found by the string method
-    # + Newton (mep.barrier) are independent computations of the same state.
+    # + Newton (barrier.barrier) are independent computations of the same state.
     S, states = _states_at(x3, 1.1)
     b = barrier(S)
     assert b.status == "ok" and b.saddle.index == 1
@@ -98,7 +104,7 @@ def test_corners_where_a_contact_point_crosses_a_node_are_passed():
     # corner was an event, the corrector stalled there and the trace ended (step_too_small).
     S = DiscreteStrip(60, L, 2.0, 0.68, A, GAMMA)
     eq = open_state(S)
-    st = ContinuationSettings(**{**_DEFAULTS, "direction": -1, "max_steps": 2000})
+    st = ContinuationSettings(**{**DEFAULTS, "direction": -1, "max_steps": 2000})
     br = trace_discrete_branch(S, eq, (0.3, 1.0), st, restart=True, max_segments=200)
     assert br.status == "parameter_bound", br.message
     kinks = [s.event for s in br.segments if s.event is not None
@@ -125,19 +131,19 @@ def test_downward_restart_and_the_end_where_the_strip_wraps_the_drop():
     S = DiscreteStrip(60, L, 2.0, 1.6, A, GAMMA)
     eq = wrapped_state(S)
     down = trace_discrete_branch(S, eq, (0.5, 2.2),
-                                 ContinuationSettings(**{**_DEFAULTS, "direction": -1,
+                                 ContinuationSettings(**{**DEFAULTS, "direction": -1,
                                                          "max_steps": 2000}),
                                  restart=True, max_segments=400)
     assert down.status == "parameter_bound", down.message
     assert all(np.all(np.diff(s.delta[:2]) < 0) for s in down.segments[:3])
     up = trace_discrete_branch(S, eq, (0.5, 2.2),
-                               ContinuationSettings(**{**_DEFAULTS, "max_steps": 2000}),
+                               ContinuationSettings(**{**DEFAULTS, "max_steps": 2000}),
                                restart=True, max_segments=400)
     assert up.status == "contact_lines_meet", up.message
     end = up.events[-1]
     s_end = S.with_(delta=end.delta)
     # the chord at the located end is the stop value (length; Brent to ~1e-12)
-    assert abs(s_end.chord(end.u) - _CHORD_STOP * end.delta) < 1e-9
+    assert abs(s_end.chord(end.u) - CHORD_STOP * end.delta) < 1e-9
     # the deposition at small Delta lies on the same chain (one branch, no bistability
     # at x = 2 for this n: the open state turns into the encapsulated one)
     S0 = S.with_(delta=0.6)
@@ -196,8 +202,6 @@ def test_discrete_strip_for_keeps_the_scene_resolution():
 
 
 def test_lowest_barriers_is_the_minimax_over_saddle_paths():
-    from elastocap.strip.barrier_graph import lowest_barriers
-
     # minima: 0 open (E 0), 1 open (E 1), 2 encapsulated (E -5), 3 open, isolated (E 2);
     # saddles: 0-1 at 3, 1-2 at 2, 0-2 at 10, one with a failed descent (-1) at 0.5
     got = lowest_barriers([0.0, 1.0, -5.0, 2.0], [False, False, True, False],
@@ -210,8 +214,6 @@ def test_lowest_barriers_is_the_minimax_over_saddle_paths():
 
 
 def test_barrier_graph_agrees_with_the_string_method(x3):
-    from elastocap.strip.barrier_graph import barrier_graph
-
     g = barrier_graph(x3, 1.1)
     # at x = 3, Delta = 1.1, n = 60 the traced branches cross one open minimum, one
     # encapsulated minimum and one saddle joining them
@@ -222,3 +224,104 @@ def test_barrier_graph_agrees_with_the_string_method(x3):
     ref = barrier(S)
     # the string method's barrier (0.9245913, an independent path search) to round-off
     assert abs(b["barrier"] - ref.barrier) < 1e-10
+
+
+# ------------------------------------------------------------------ one branch, fixed contact sets
+@pytest.fixture(scope="module")
+def x3_open():
+    """The open state at x = 3, Delta = 1.25, n = 100, traced up in Delta over three
+    segments (~1 s): lift-off of node 53, lift-off of node 79 (where Delta turns back),
+    touch-down of node 53."""
+    S = DiscreteStrip(100, L, 3.0, 1.25, A, GAMMA)
+    eq = open_state(S)
+    br = trace_discrete_branch(S, eq, (1.0, 1.4), restart=True, max_segments=3)
+    return S, eq, br
+
+
+def test_traced_points_are_equilibria_and_match_natural_continuation(x3_open):
+    S, eq, br = x3_open
+    seg = br.segments[0]
+    assert np.array_equal(seg.active, eq.active)
+    assert seg.delta.size >= 5 and np.all(np.diff(seg.delta) > 0.0)
+    for d, u, r in zip(seg.delta, seg.u, seg.reactions, strict=True):
+        s = S.with_(delta=d)
+        e = solve_equilibrium(s, u, active=seg.active)
+        # Newton from a traced point stops at its first iteration: the point is a KKT point
+        # to round-off (relative residual; measured ~1e-13)
+        assert e.success and e.iterations == 1 and e.residual < 1e-9, (d, e.residual)
+        assert np.max(np.abs(e.u - u)) < 1e-12
+        assert np.max(np.abs(e.reactions - r)) < 1e-9 * S.q * S.h * S.n
+    # descent (trust-region Newton on the penalized energy, then active-set Newton) from
+    # the flat strip at interior traced Deltas lands on the traced states: the first
+    # segment is the deposition's branch (measured agreement ~1e-12)
+    for d, u in list(zip(seg.delta, seg.u, strict=True))[1:-1:3]:
+        e = open_state(S.with_(delta=float(d)))
+        assert e.success and np.array_equal(e.active, seg.active), d
+        assert np.max(np.abs(e.u - u)) < 1e-8, d
+    # energies of the traced branch are those of the states
+    exact = [S.with_(delta=d).energy(u) for d, u in zip(seg.delta, seg.u, strict=True)]
+    assert np.allclose(seg.energy, exact, rtol=0, atol=1e-12)
+    # the fixed-set index along the stable first segment is 0
+    assert np.all(seg.index == 0) and np.all(seg.index_strong == 0)
+
+
+def test_active_set_events_are_located_consistently(x3_open):
+    S, eq, br = x3_open
+    assert [(e.kind, e.node) for e in br.events] == [
+        ("lift_off", 53), ("lift_off", 79), ("touch_down", 53)]
+    for e in br.events:
+        # reaction (force; q h = 0.143) or gap (length) at the located event: round-off
+        assert abs(e.value) < 1e-8, (e.kind, e.node, e.value)
+        s = S.with_(delta=e.delta)
+        assert s.heights(e.u).min() > -1e-10
+    # the event Deltas (measured 1.288236482, 1.301729538, 1.296971785)
+    d = [e.delta for e in br.events]
+    assert abs(d[0] - 1.288236482) < 1e-8 and abs(d[1] - 1.301729538) < 1e-8
+    assert abs(d[2] - 1.296971785) < 1e-8
+    # segments join at the events: each next segment starts at its event's state
+    for a, b in zip(br.segments[:-1], br.segments[1:], strict=True):
+        assert b.delta[0] == a.event.delta
+        assert np.max(np.abs(b.u[0] - a.event.u)) < 1e-10
+        k = a.event.node
+        assert b.active[k] != a.active[k]
+        assert np.sum(b.active != a.active) == 1
+    # past the first lift-off, node 53 rises (a contact equilibrium again)
+    s2 = br.segments[1]
+    z53 = [S.with_(delta=dd).heights(u)[53]
+           for dd, u in zip(s2.delta[1:], s2.u[1:], strict=True)]
+    assert min(z53) > 0.0
+    assert np.min(s2.reactions[:-1][:, s2.active]) >= -1e-10
+
+
+def test_end_of_the_open_branch_is_where_the_open_state_is_lost(x3_open):
+    S, _eq, br = x3_open
+    # At n = 100 the open branch ends where node 79 (under the drop) lifts off and Delta
+    # turns back: a nonsmooth fold, the index going 0 -> 1 (no smooth fold of a fixed-set
+    # branch there).
+    assert len(br.turning_points) == 1
+    tp = br.turning_points[0]
+    assert tp["node"] == 79 and tp["kind"] == "lift_off"
+    assert tp["index"] == (0, 1)
+    # independent check by the active-set Newton method (solve_equilibrium: it changes
+    # the contact set itself, unlike the fixed-set continuation): from the state at the
+    # fold, 1e-3 below it converges to a stable open state next to it (4 iterations,
+    # 4.4e-3 away), 1e-3 above it finds none (no convergence in 200 iterations)
+    d_end = tp["delta"]
+    ev = next(e for e in br.events if e.delta == d_end)
+    below = S.with_(delta=d_end - 1e-3)
+    e_below = solve_equilibrium(below, ev.u, active=br.segments[1].active)
+    assert e_below.success and e_below.index == 0 and not is_encapsulated(below, e_below.u)
+    assert np.max(np.abs(e_below.u - ev.u)) < 1e-2
+    e_above = solve_equilibrium(S.with_(delta=d_end + 1e-3), ev.u, active=br.segments[1].active)
+    assert not e_above.success
+    # the segment past it is the unstable branch, heading down in Delta
+    s3 = br.segments[2]
+    assert np.all(np.diff(s3.delta) < 0.0) and np.all(s3.index == 1)
+    assert not br.folds  # no smooth fold on these segments
+
+
+def test_bad_input_is_rejected_by_message():
+    S = DiscreteStrip(20, L, 3.0, 1.1, A, GAMMA)
+    eq = solve_equilibrium(S, np.zeros(S.size), max_iter=1)
+    with pytest.raises(ValueError, match="state: got status"):
+        trace_discrete_branch(S, eq, (1.0, 1.2))

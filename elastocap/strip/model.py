@@ -1,0 +1,477 @@
+"""The discrete strip of Fig 3 on a frictionless ground: energy, exact derivatives, geometry.
+
+Model (paper, main text eq. [1]; the discrete energy of the ``dynamics`` package)
+---------------------------------------------------------------------------------
+The strip [0, L] is a polyline of n edges of length h = L / n. Unknowns
+u = (z_0, theta_0, ..., theta_{n-1}): the height of node 0 and the edge angles (from +x
+towards +z). Node k sits at
+
+    x_k = h sum_{j<k} cos theta_j,     z_k = z_0 + h sum_{j<k} sin theta_j,
+
+so inextensibility is exact; x_0 = 0 fixes the horizontal translation, which the
+frictionless ground leaves free (no zero mode). The energy is, term for term, the
+potential energy of a damped run of :func:`elastocap.impact.run_impact` at the same
+resolution (``dynamics.bending``, ``dynamics.effects.Gravity`` with lumped masses,
+``elastocap.capillary``), so an equilibrium here is an equilibrium of the dynamic model:
+
+* bending, Discrete Elastic Rods (Bergou et al. 2008): kb_i = 2 tan(psi_i / 2) with
+  psi_i = theta_i - theta_{i-1} the turning angle at interior node i, and
+  E_b = sum_i B kb_i^2 / (2 h) = (2B/h) sum_i tan^2(psi_i / 2);
+* gravity, lumped masses q h (q h / 2 at the ends): E_g = q h sum_edges z_mid
+  = q L z_0 + q h sum_j (L - s_j) sin theta_j with s_j the mid-edge arclength;
+* capillarity: gamma lambda of the circular cap of area A pinned at S1 = L - x - Delta/2
+  and S2 = L - x + Delta/2 (inside edges, linear interpolation), from
+  :func:`elastocap.drop.capillary_energy_and_gradient` (exact gradient); its exact
+  Hessian is assembled here from the same cap kernels (:func:`capillary_hessian_nodes`);
+* optionally a vertical point force F at the free end: E_F = -F z_n (closed-form tests).
+
+Ground: z_k >= 0 at every node k = 0..n (the constraint values :meth:`DiscreteStrip.heights`
+and their gradients :meth:`DiscreteStrip.constraint_jacobian`); the contact set is an
+unknown, so one model covers every contact topology (the open state, the lifted and the
+floppy encapsulated states, the saddles between them). The equilibria are solved in
+:mod:`elastocap.strip.solve`, traced in :mod:`elastocap.strip.trace`.
+
+Also here: the geometry and observables of a state (:func:`is_encapsulated`,
+:func:`strip_and_interface`, :func:`point_measures`) and the energy of the impact's release
+state (:func:`flat_energy`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from elastocap.drop import (
+    cap_geometry,
+    cap_tau_derivatives,
+    capillary_energy_and_gradient,
+    wet_polygon_area,
+)
+from elastocap.statics.shape import arc_points, count_crossings
+
+__all__ = [
+    "DiscreteStrip",
+    "capillary_hessian_nodes",
+    "discrete_strip_for",
+    "flat_energy",
+    "flat_state",
+    "is_encapsulated",
+    "point_measures",
+    "strip_and_interface",
+]
+
+
+def _edge_at(s, s_nodes):
+    """Edge index i and fraction w in [0, 1] with s = (1 - w) s_i + w s_{i+1} (the
+    placement of a contact point in the edges, as in :mod:`elastocap.drop`)."""
+    n = s_nodes.shape[0]
+    i = int(np.clip(np.searchsorted(s_nodes, s, side="right") - 1, 0, n - 2))
+    w = float(np.clip((s - s_nodes[i]) / (s_nodes[i + 1] - s_nodes[i]), 0.0, 1.0))
+    return i, w
+
+# --------------------------------------------------------------------------- kernels
+@numba.njit(cache=True)
+def _bending(theta, B, h, grad, hdiag, hoff):
+    """DER bending energy in edge angles; ADDS the gradient and the tridiagonal Hessian.
+
+    E_b = (2B/h) sum_i tan^2((theta_i - theta_{i-1}) / 2). Hand-written (not the node-based
+    ``dynamics.bending`` kernel) because the angle form gives the Hessian in closed form:
+    f(psi) = (2B/h) t^2, f' = (2B/h) t (1 + t^2), f'' = (B/h)(1 + t^2)(1 + 3 t^2).
+    ``grad``, ``hdiag`` have length n (angles), ``hoff`` length n - 1.
+    """
+    n = theta.shape[0]
+    E = 0.0
+    a = 2.0 * B / h
+    for i in range(1, n):
+        t = math.tan(0.5 * (theta[i] - theta[i - 1]))
+        t2 = t * t
+        E += a * t2
+        g = a * t * (1.0 + t2)
+        grad[i] += g
+        grad[i - 1] -= g
+        k = (B / h) * (1.0 + t2) * (1.0 + 3.0 * t2)
+        hdiag[i] += k
+        hdiag[i - 1] += k
+        hoff[i - 1] -= k
+    return E
+
+
+@numba.njit(cache=True)
+def _positions(z0, theta, h, out):
+    """Node positions (n + 1, 2) from z_0 and the edge angles (x_0 = 0)."""
+    out[0, 0] = 0.0
+    out[0, 1] = z0
+    for j in range(theta.shape[0]):
+        out[j + 1, 0] = out[j, 0] + h * math.cos(theta[j])
+        out[j + 1, 1] = out[j, 1] + h * math.sin(theta[j])
+    return out
+
+
+def capillary_hessian_nodes(X, s_nodes, s1, s2, area, gamma):
+    """Exact Hessian of gamma lambda in the positions of the wet nodes.
+
+    Parameters
+    ----------
+    X : ndarray, shape (n_nodes, 2)
+        Node positions (x, z) (length).
+    s_nodes : ndarray, shape (n_nodes,)
+        Arclength of each node (length).
+    s1, s2 : float
+        Contact arclengths (length), inside edges, s1 < s2.
+    area, gamma : float
+        Drop area (length^2) and line tension (force).
+
+    Returns
+    -------
+    i1 : int
+        First node involved (the start of the edge holding S1); the nodes are
+        i1 .. i1 + m - 1.
+    H : ndarray, shape (2m, 2m)
+        d^2 (gamma lambda) / dX dX, ordered (x_{i1}, z_{i1}, x_{i1+1}, ...) (force/length).
+
+    Notes
+    -----
+    Same cap model and polygon as :func:`elastocap.drop.capillary_energy_and_gradient`:
+    the wet polygon P_0 = X(S1), P_1..P_p = the interior wet nodes, P_{p+1} = X(S2) (linear
+    interpolation), A1 = A - A0(P), d = |P_{p+1} - P_0|. With d(lambda) = cos(tau) dd +
+    kappa dA1 (kappa = 2 sin(tau) / d) and tau(A1, d) from :func:`cap_tau_derivatives`,
+
+        H = gamma [l_dd gd gd^T - l_dA (gd gA^T + gA gd^T) + l_AA gA gA^T
+                   + cos(tau) Hd - kappa HA],
+
+    l_dd = -sin(tau) tau_d, l_dA = -sin(tau) tau_A1, l_AA = 2 cos(tau) tau_A1 / d, gd and
+    Hd the derivatives of the chord length, gA and HA (constant) those of the shoelace
+    area A0.
+    """
+    i1, w1 = _edge_at(s1, s_nodes)
+    i2, w2 = _edge_at(s2, s_nodes)
+    p = i2 - i1  # interior wet nodes i1+1 .. i2
+    npt = p + 2  # polygon points
+    m = i2 - i1 + 2  # nodes i1 .. i2+1
+    T = np.zeros((npt, m))
+    T[0, 0], T[0, 1] = 1.0 - w1, w1
+    for k in range(1, p + 1):
+        T[k, k] = 1.0
+    T[npt - 1, m - 2], T[npt - 1, m - 1] = 1.0 - w2, w2
+    P = T @ X[i1 : i2 + 2]
+    a0 = wet_polygon_area(X, s_nodes, s1, s2)
+    c = P[-1] - P[0]
+    d = math.hypot(c[0], c[1])
+    a1 = area - a0
+    tau, sn, cs, _lam, kappa = cap_geometry(a1, d)
+    ta, td = cap_tau_derivatives(tau, sn, cs, a1, d)
+    # gradient and (constant) Hessian of the shoelace area over the closed polygon
+    R = np.array([[0.0, 1.0], [-1.0, 0.0]])  # d/dP_{k+1} of (1/2) J P_{k+1}, times 2
+    gA = np.zeros((npt, 2))
+    HA = np.zeros((2 * npt, 2 * npt))
+    for k in range(npt):
+        kn, kp = (k + 1) % npt, (k - 1) % npt
+        gA[k] = 0.5 * np.array([P[kn, 1] - P[kp, 1], -(P[kn, 0] - P[kp, 0])])
+        HA[2 * k : 2 * k + 2, 2 * kn : 2 * kn + 2] += 0.5 * R
+        HA[2 * k : 2 * k + 2, 2 * kp : 2 * kp + 2] -= 0.5 * R
+    u = c / d
+    gd = np.zeros((npt, 2))
+    gd[0], gd[-1] = -u, u
+    Pu = (np.eye(2) - np.outer(u, u)) / d
+    Hd = np.zeros((2 * npt, 2 * npt))
+    e0, e1 = slice(0, 2), slice(2 * npt - 2, 2 * npt)
+    Hd[e0, e0], Hd[e1, e1], Hd[e0, e1], Hd[e1, e0] = Pu, Pu, -Pu, -Pu
+    gdv, gAv = gd.ravel(), gA.ravel()
+    l_dd = -sn * td
+    l_da = -sn * ta
+    l_aa = 2.0 * cs * ta / d
+    HP = gamma * (
+        l_dd * np.outer(gdv, gdv)
+        - l_da * (np.outer(gdv, gAv) + np.outer(gAv, gdv))
+        + l_aa * np.outer(gAv, gAv)
+        + cs * Hd
+        - kappa * HA
+    )
+    T2 = np.kron(T, np.eye(2))
+    return i1, T2.T @ HP @ T2
+
+
+# --------------------------------------------------------------------------- problem
+@dataclass(frozen=True)
+class DiscreteStrip:
+    """The discrete strip of Fig 3: parameters, energy, exact derivatives, constraints.
+
+    Parameters
+    ----------
+    n : int
+        Number of edges (h = L / n).
+    L : float
+        Strip length (length).
+    x_end : float
+        Distance x of the drop centre from the free end S = L (length).
+    delta, area, gamma : float
+        Wetted length Delta (length), drop area A (length^2), line tension gamma (force);
+        gamma = 0 removes the drop.
+    B : float
+        Bending modulus (force length^2).
+    q : float
+        Weight per unit length mu g (force / length).
+    F : float
+        Vertical point force on the last node (force), 0 in the scene.
+    """
+
+    n: int
+    L: float
+    x_end: float
+    delta: float
+    area: float
+    gamma: float
+    B: float = 1.0
+    q: float = 1.0
+    F: float = 0.0
+
+    def __post_init__(self):
+        if int(self.n) != self.n or self.n < 4:
+            raise ValueError(f"n: got {self.n!r}; expected an integer number of edges >= 4")
+        for name, lo, strict in (("L", 0.0, True), ("B", 0.0, True), ("q", 0.0, False),
+                                 ("gamma", 0.0, False), ("area", 0.0, self.gamma > 0.0)):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and (v > lo if strict else v >= lo)):
+                raise ValueError(
+                    f"{name}: got {v!r}; expected a finite value {'>' if strict else '>='} {lo}"
+                )
+        if self.gamma > 0.0 and not (0.0 < self.s1 < self.s2 < self.L):
+            raise ValueError(
+                f"drop: got S1 = {self.s1}, S2 = {self.s2} (x = {self.x_end}, Delta = "
+                f"{self.delta}); expected 0 < S1 < S2 < L = {self.L}"
+            )
+
+    # ------------------------------------------------------------------ geometry
+    @property
+    def h(self) -> float:
+        return self.L / self.n
+
+    @property
+    def size(self) -> int:
+        """Number of unknowns, n + 1: z_0 and the n edge angles."""
+        return self.n + 1
+
+    @property
+    def s1(self) -> float:
+        return self.L - self.x_end - 0.5 * self.delta
+
+    @property
+    def s2(self) -> float:
+        return self.L - self.x_end + 0.5 * self.delta
+
+    @property
+    def s_nodes(self) -> np.ndarray:
+        return np.linspace(0.0, self.L, self.n + 1)
+
+    @property
+    def tip(self) -> int:
+        """Index in u of the last edge angle theta_{n-1}."""
+        return self.n
+
+    def with_(self, **kw) -> DiscreteStrip:
+        """A copy with some parameters changed (e.g. ``delta``, ``n``)."""
+        return DiscreteStrip(**{**self.__dict__, **kw})
+
+    def positions(self, u) -> np.ndarray:
+        """Node positions, shape (n + 1, 2) (length)."""
+        return _positions(float(u[0]), np.ascontiguousarray(u[1:], dtype=float), self.h,
+                          np.empty((self.n + 1, 2)))
+
+    def heights(self, u) -> np.ndarray:
+        """z_k of every node (the constraint values), shape (n + 1,)."""
+        return self.positions(u)[:, 1]
+
+    def chord(self, u) -> float:
+        """Distance d between the contact points X(S1) and X(S2) (length)."""
+        X = self.positions(u)
+        s = self.s_nodes
+        dx = np.interp(self.s2, s, X[:, 0]) - np.interp(self.s1, s, X[:, 0])
+        dz = np.interp(self.s2, s, X[:, 1]) - np.interp(self.s1, s, X[:, 1])
+        return math.hypot(dx, dz)
+
+    def constraint_jacobian(self, u) -> np.ndarray:
+        """d z_k / du, shape (n + 1, n + 1): row k = (1, h cos theta_j for j < k, 0...)."""
+        G = np.zeros((self.n + 1, self.n + 1))
+        G[:, 0] = 1.0
+        hc = self.h * np.cos(u[1:])
+        G[1:, 1:] = np.tril(np.broadcast_to(hc, (self.n, self.n)))
+        return G
+
+    # ------------------------------------------------------------------ energy
+    def _node_to_u(self, theta, g):
+        """Chain rule from a node gradient g (n + 1, 2) to d/du (n + 1,) and the suffix sums."""
+        Gs = np.cumsum(g[::-1], axis=0)[::-1]  # Gs[k] = sum_{k' >= k} g_k'
+        Gx, Gz = Gs[1:, 0], Gs[1:, 1]  # sums over nodes beyond edge j
+        out = np.empty(self.n + 1)
+        out[0] = Gs[0, 1]
+        out[1:] = self.h * (-np.sin(theta) * Gx + np.cos(theta) * Gz)
+        return out, Gx, Gz
+
+    def _smid(self):
+        return (np.arange(self.n) + 0.5) * self.h
+
+    def energy_parts(self, u) -> dict:
+        """Bending, gravity, capillary and end-force energies (energy units)."""
+        th = np.asarray(u[1:], dtype=float)
+        n = self.n
+        bend = _bending(th, self.B, self.h, np.zeros(n), np.zeros(n), np.zeros(n - 1))
+        grav = self.q * (self.L * u[0] + self.h * np.sum((self.L - self._smid()) * np.sin(th)))
+        zn = u[0] + self.h * np.sum(np.sin(th))
+        cap = 0.0
+        if self.gamma > 0.0:
+            X = self.positions(u)
+            cap, _t, _k = capillary_energy_and_gradient(
+                X, self.s_nodes, self.s1, self.s2, self.area, self.gamma, np.zeros_like(X)
+            )
+        return {"bending": float(bend), "gravity": float(grav), "capillary": float(cap),
+                "end_force": float(-self.F * zn)}
+
+    def energy(self, u) -> float:
+        return float(sum(self.energy_parts(u).values()))
+
+    def gradient(self, u) -> np.ndarray:
+        """dE/du, shape (n + 1,) (force for z_0, energy for the angles)."""
+        return self.derivatives(u, hessian=False)[1]
+
+    def hessian(self, u) -> np.ndarray:
+        """d^2E/du^2, shape (n + 1, n + 1), exact."""
+        return self.derivatives(u)[2]
+
+    def derivatives(self, u, hessian=True):
+        """Energy, gradient and (optionally) the exact Hessian in u."""
+        u = np.asarray(u, dtype=float)
+        th = u[1:]
+        n, h, q, L = self.n, self.h, self.q, self.L
+        g = np.zeros(n + 1)
+        gb, hd, ho = np.zeros(n), np.zeros(n), np.zeros(n - 1)
+        E = _bending(th, self.B, h, gb, hd, ho)
+        g[1:] += gb
+        sn, cs = np.sin(th), np.cos(th)
+        w = q * h * (L - self._smid()) - self.F * h
+        E += q * L * u[0] + float(w @ sn) - self.F * u[0]
+        g[0] += q * L - self.F
+        g[1:] += w * cs
+        H = None
+        if hessian:
+            H = np.zeros((n + 1, n + 1))
+            idx = np.arange(1, n + 1)
+            H[idx, idx] = hd - w * sn
+            H[idx[:-1], idx[1:]] = ho
+            H[idx[1:], idx[:-1]] = ho
+        if self.gamma > 0.0:
+            X = self.positions(u)
+            gX = np.zeros_like(X)
+            ec, _t, _k = capillary_energy_and_gradient(
+                X, self.s_nodes, self.s1, self.s2, self.area, self.gamma, gX
+            )
+            E += ec
+            gu, Gx, Gz = self._node_to_u(th, gX)
+            g += gu
+            if hessian:
+                # d^2 X_k / d theta_j^2 = -h (cos, sin) theta_j for k > j (diagonal only)
+                H[idx, idx] += -h * (cs * Gx + sn * Gz)
+                i1, HX = capillary_hessian_nodes(X, self.s_nodes, self.s1, self.s2,
+                                                 self.area, self.gamma)
+                m = HX.shape[0] // 2
+                # lambda is translation invariant: only the wet edges i1 .. i1+m-2 act.
+                # X_{i1+a} - X_{i1} = h sum_{i1 <= j < i1+a} (cos, sin) theta_j
+                J = np.zeros((2 * m, m - 1))
+                for a in range(1, m):
+                    for b in range(a):
+                        j = i1 + b
+                        J[2 * a, b] = -h * sn[j]
+                        J[2 * a + 1, b] = h * cs[j]
+                cols = 1 + i1 + np.arange(m - 1)
+                Hc = J.T @ HX @ J
+                H[np.ix_(cols, cols)] += 0.5 * (Hc + Hc.T)  # symmetric to the last bit
+        return float(E), g, H
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def discrete_strip_for(scene, n=None) -> DiscreteStrip:
+    """The discrete strip of a scene with gravity and the ground (``fig3-strip``).
+
+    ``n`` defaults to the scene's impact resolution (``numerics.n_edges``, or the accuracy
+    preset's edges when it is 0, as :func:`elastocap.impact.impact_settings` resolves it).
+    """
+    if not (scene.effects.gravity > 0.0 and scene.effects.ground):
+        raise ValueError(
+            f"scene.effects: got gravity = {scene.effects.gravity}, ground = "
+            f"{scene.effects.ground}; the strip statics needs gravity > 0 and ground = true"
+        )
+    if n is None:
+        from elastocap.impact import impact_settings
+
+        n = impact_settings(scene)["n_edges"]
+    d = scene.drop
+    return DiscreteStrip(
+        int(n), scene.rod.length, scene.distance_from_end, d.wetted_length, d.area,
+        d.line_tension, scene.rod.bending_modulus,
+        scene.rod.mass_per_length * scene.effects.gravity,
+    )
+
+
+def flat_state(strip: DiscreteStrip) -> np.ndarray:
+    """u of the straight strip lying on the ground."""
+    return np.zeros(strip.size)
+
+
+def flat_energy(area: float, gamma: float, delta: float) -> float:
+    """gamma lambda(A, Delta): the drop on the straight strip (the impact's release state)."""
+    return gamma * cap_geometry(area, delta)[3]
+
+
+def is_encapsulated(strip: DiscreteStrip, u) -> bool:
+    """The paper's criterion (Methods): the free end lies left of the impact centre."""
+    X = strip.positions(u)
+    s = strip.s_nodes
+    xc = float(np.interp(strip.L - strip.x_end, s, X[:, 0]))
+    return bool(X[-1, 0] < xc)
+
+
+def strip_and_interface(strip: DiscreteStrip, u):
+    """Node positions (n + 1, 2), the drop's interface (k, 2) from X(S1) to X(S2), and the
+    chord d (length)."""
+    X = strip.positions(u)
+    s = strip.s_nodes
+    p1 = np.array([np.interp(strip.s1, s, X[:, 0]), np.interp(strip.s1, s, X[:, 1])])
+    p2 = np.array([np.interp(strip.s2, s, X[:, 0]), np.interp(strip.s2, s, X[:, 1])])
+    d = float(np.hypot(*(p2 - p1)))
+    a1 = strip.area - wet_polygon_area(X, s, strip.s1, strip.s2)
+    tau = cap_geometry(a1, d)[0] if d > 0.0 else math.pi
+    return X, arc_points(p1, p2, tau), d
+
+
+def point_measures(strip: DiscreteStrip, u, flat: float | None = None) -> dict:
+    """Observables of one state of the discrete strip.
+
+    Keys: ``energy`` (energy units), ``energy_above_flat`` (energy minus gamma lambda of the
+    drop on the straight strip at the same Delta), ``measure`` (theta(L)/pi: the turning of
+    the strip, 0 flat, ~1 folded over), ``encapsulated`` (1.0/0.0, the paper's criterion:
+    the free end left of the impact centre), ``tip_height`` z(L) (length), ``chord`` d
+    (length), ``contacts`` (nodes at z <= 1e-12), ``rod_crossings`` and
+    ``interface_crossings`` (counts), ``admissible`` (1.0 when both are 0).
+    """
+    X, iface, d = strip_and_interface(strip, u)
+    rod_x = int(count_crossings(X, X, True, 0, len(X)))
+    if_x = int(count_crossings(iface, X, False, 1, len(iface) - 2))
+    e = strip.energy(u)
+    if flat is None:
+        flat = flat_energy(strip.area, strip.gamma, strip.delta)
+    return {
+        "energy": float(e),
+        "energy_above_flat": float(e - flat),
+        "measure": float(u[-1] / math.pi),
+        "encapsulated": float(is_encapsulated(strip, u)),
+        "tip_height": float(X[-1, 1]),
+        "chord": d,
+        "contacts": int(np.sum(X[:, 1] <= 1e-12)),
+        "rod_crossings": rod_x,
+        "interface_crossings": if_x,
+        "admissible": float(rod_x == 0 and if_x == 0),
+    }
