@@ -1,5 +1,7 @@
-"""The README's quick start stays true: its test command is what CI runs, verbatim."""
+"""The README stays true: its test command is what CI runs, its links and figures exist, it
+stays a short reference."""
 
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,3 +27,22 @@ def test_quick_start_has_exactly_two_commands():
 def test_ci_runs_the_readme_test_command_verbatim():
     ci = (ROOT / ".ci" / "run").read_text()
     assert _quick_start_commands()[1] in ci.splitlines()
+
+
+def test_readme_links_and_figures_exist():
+    text = (ROOT / "README.md").read_text()
+    targets = re.findall(r"\]\(([^)#\s]+)\)", text)
+    local = [t for t in targets if "://" not in t]
+    assert any(t.startswith("docs/img/") for t in local)
+    assert any(t.startswith("docs/guide/") for t in local)
+    missing = [t for t in local if not (ROOT / t).exists()]
+    assert not missing, missing
+
+
+def test_readme_is_a_short_reference():
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) <= 360
+    for heading in ("## Quick start", "## Commands", "## Python API", "## Headline numbers",
+                    "## Documentation"):
+        assert heading in text
+    assert "ARCHITECTURE.md" not in text
