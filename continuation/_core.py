@@ -500,7 +500,7 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
 # floor rises above a tight newton_tol (measured: 3e-11 against 1e-11 on the elastica with a
 # drop); a point whose residual stalls within this factor of the tolerance is as accurate as
 # the arithmetic allows, and is accepted for locating special points.
-_LOCATE_STALL_FACTOR = 100.0
+_LOCATE_STALL_FACTOR = 30.0
 
 
 def _point_at(core, x_a, t_a, s_arc):
@@ -557,12 +557,12 @@ FOLD_BRACKET_SLACK = 1e-10
 FOLD_BRACKET_REACH = 10.0
 
 
-def _fold_in_bracket(pf, slope, pa, pb):
+def _fold_in_bracket(pf, slope, pa, pb, reach=0.0):
     """Whether ``pf`` can be the extremum of p on a continuation step from ``pa`` to ``pb``
     whose dp/ds at ``pa`` is ``slope``: a maximum (slope > 0) lies at or beyond both
     values, a minimum at or below both, and within FOLD_BRACKET_REACH step widths."""
     slack = FOLD_BRACKET_SLACK * (1.0 + abs(pf))
-    span = abs(pb - pa) + 1e-12 * (1.0 + abs(pb))
+    span = max(abs(pb - pa), reach / FOLD_BRACKET_REACH) + 1e-12 * (1.0 + abs(pb))
     if slope > 0:
         return max(pa, pb) - slack <= pf <= max(pa, pb) + FOLD_BRACKET_REACH * span
     return min(pa, pb) - FOLD_BRACKET_REACH * span <= pf <= min(pa, pb) + slack
@@ -598,7 +598,9 @@ def _detect(core, run, k, skip_first=False):
                 sp.data["iterations"] = sp.data.get("iterations", 0) + its
                 if msg:
                     sp.data["message"] = msg
-                if ok and _fold_in_bracket(pf, ta[n], run.p[k - 1], run.p[k]):
+                # the step's arclength bounds how far p can turn beyond the bracket values
+                reach = run.ds[k] / math.sqrt(1.0 - s.theta)
+                if ok and _fold_in_bracket(pf, ta[n], run.p[k - 1], run.p[k], reach):
                     sp.p, sp.u, sp.precision, sp.located = float(pf), uf, prec, True
                     sp.data["kernel"] = kern
                     obs, _ = core.observe(uf, pf)
@@ -880,6 +882,10 @@ def continue_branch(
     e[n] = 1.0
     with np.errstate(all="ignore"):
         r0 = core.correct(x0, e, p0, max_iter=max(2 * settings.max_newton, 20))
+        if not r0.ok and r0.normF <= _LOCATE_STALL_FACTOR * settings.newton_tol:
+            # a start at a located special point (dF/du singular): as accurate as the
+            # arithmetic allows there
+            r0.ok = True
         if not r0.ok:
             return _failed(problem, settings, n, (
                 f"Newton at the start p0={p0!r} failed: {r0.reason} (max|F|={r0.normF:.2e}, "

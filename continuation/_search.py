@@ -406,15 +406,16 @@ def _relocate_branch_point(problem, br: Branch, sp, cont: ContinuationSettings,
     arc = math.sqrt(wu * float(d[:n] @ d[:n]) + (1 - cont.theta) * float(d[n] ** 2))
     if not arc > 0:
         return None
-    ds = arc / 8.0
-    sub = cont.replace(ds0=max(ds, cont.ds_min), ds_max=max(ds, cont.ds_min),
-                       ds_min=min(cont.ds_min, ds / 64), max_steps=24, direction=1,
-                       check_jacobian=False)
-    t = br.tangent[k - 1]
-    nb = continue_branch(problem, br.u[k - 1], float(br.p[k - 1]), sub, tangent=t)
-    for q in nb.branch_points:
-        if q.located and "kernel" in q.data:
-            return q
+    for frac in (8.0, 5.0, 13.0):  # other step sizes put other points next to it
+        ds = arc / frac
+        sub = cont.replace(ds0=max(ds, cont.ds_min), ds_max=max(ds, cont.ds_min),
+                           ds_min=min(cont.ds_min, ds / 64), max_steps=int(3 * frac),
+                           direction=1, check_jacobian=False)
+        t = br.tangent[k - 1]
+        nb = continue_branch(problem, br.u[k - 1], float(br.p[k - 1]), sub, tangent=t)
+        for q in nb.branch_points:
+            if q.located and "kernel" in q.data:
+                return q
     return None
 
 

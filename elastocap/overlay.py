@@ -16,7 +16,7 @@ import numpy as np
 
 from elastocap.impact import run_impact
 from elastocap.scene import Scene, SceneError
-from elastocap.statics.branches import BranchSet, _solve_on_run, _stable_runs, trace_branches
+from elastocap.statics.branches import BranchSet, solve_on_run, stable_runs, trace_branches
 
 __all__ = ["classify_final_state", "parse_range", "run_overlay", "stable_equilibria"]
 
@@ -42,11 +42,11 @@ def stable_equilibria(bs: BranchSet, delta: float) -> list[dict]:
     for b, br in enumerate(bs.branches):
         if br.u is None:
             continue
-        for i, j in _stable_runs(br):
+        for i, j in stable_runs(br):
             lo, hi = sorted((br.p[i], br.p[j]))
             if not lo <= delta <= hi:
                 continue
-            u = _solve_on_run(P, br, i, j, delta)
+            u = solve_on_run(P, br, i, j, delta)
             if u is None:
                 continue
             obs = P.observables(u, delta)
@@ -86,8 +86,7 @@ def classify_final_state(bs: BranchSet, delta: float, x_final: np.ndarray, equil
     eqs = stable_equilibria(bs, delta) if equilibria is None else equilibria
     if not eqs:
         return None
-    P = bs.problem
-    P.set(bs.parameter, delta)
+    P = bs.problem.with_(**{bs.parameter: delta})
     e = np.diff(x_final, axis=0)
     phi = np.unwrap(np.arctan2(e[:, 1], e[:, 0]))
     L = P.params["L"]

@@ -51,9 +51,7 @@ def fold_curves(
             q0 = P.get(q_param)
 
             def family(q, P=P):
-                prob = P.with_parameter("drop.wetted_length")
-                prob.set(q_param, q)
-                return prob
+                return P.with_(parameter="drop.wetted_length", **{q_param: q})
 
             settings = ContinuationSettings(
                 ds0=0.01,

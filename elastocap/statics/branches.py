@@ -1,15 +1,17 @@
-"""Tracing every equilibrium branch of a scene: search, continuation, special points.
+"""Every equilibrium branch of a free-rod scene: search, continuation, special points.
 
-Completeness strategy (a systematic search with deflation): on a grid of K parameter values
-spanning the range, Newton is started from a family of seed shapes (uniformly curved rods with
-total turning M pi, M from -2.5 to 2.5, plus asymmetric perturbations), **deflated** against
-every solution already known at that value (Farrell, Birkisson & Funke 2015), so that a seed
-that would fall back on a known solution is pushed to a new one or fails. Every new solution
-starts a branch continued both ways; every branch crossing a grid value records its exact
-solution there (continuation events), so the next seeds are deflated against it; every simple
-branch point is switched. A branch missed by this procedure would have to avoid all K grid
-values (an isola narrower than the grid spacing) and every deflated seed basin; the tests
-check that doubling K and the seed family finds nothing new for supp-fig5.
+The search is :class:`continuation.BranchSearch` (deflated multi-start continuation; its
+docstring states why it is complete and what it could miss). This module supplies the
+physics: the problem (:class:`~elastocap.statics.wet_elastica.WetElasticaProblem`, whose
+``seeds(p)`` are shapes chosen from the wet part's geometry), the *admissible region* of
+the continued key (where the wet interval lies on the rod and both dry arms have
+non-negative length; the search range is clipped to it and branches end on it with a named
+endpoint), and the honest reporting of special points: a fold is listed only when it was
+located, is transversal (not a branch point) and was relocated at a finer resolution, with
+that difference as its error estimate; everything else goes to ``unlocated`` with the
+reason and what to try. The search runs two ways: from the problem's seeds and, for the
+wetted length, from every crossing of the scene's area by the fold curves (in the drop
+area) of the folds found, so that the folds the fold curves cross are found too.
 """
 
 from __future__ import annotations
@@ -23,10 +25,12 @@ from scipy.optimize import brentq
 
 from continuation import (
     Branch,
+    BranchSearch,
     ContinuationSettings,
-    continue_branch,
+    SearchSettings,
+    deflated_newton,
+    fold_crossings,
     locate_fold,
-    switch_branch,
 )
 from elastocap._version import __version__
 from elastocap.jsonutil import jsonable
@@ -36,26 +40,33 @@ from elastocap.statics.wet_elastica import PARAMETERS, WetElasticaProblem
 __all__ = [
     "ACCURACY_N",
     "BranchSet",
+    "StaticsError",
+    "admissible_range",
     "find_folds",
     "newton",
     "problem_for",
+    "solve_on_run",
+    "stable_runs",
     "trace_branches",
 ]
 
 #: LGL intervals on the wet part per accuracy preset. Measured on supp-fig5 (README,
 #: "Statics accuracy"): fold error 1.4e-9 at N = 16, 2e-14 at N = 24, round-off at N = 40.
-#: (N = 12 reaches 5e-7 on the fold but finds a spurious fold on the inadmissible inverted
-#: branch, which a finer resolution does not confirm: 16 is the smallest safe draft.)
 ACCURACY_N = {"draft": 16, "default": 24, "publication": 40}
 # Contact lines closer than this fraction of Delta end a branch: the chord direction, and so
 # the cap, is undefined when they meet.
 _CHORD_STOP = 1e-3
-# Grid values used by the search, and the seed family (see module docstring).
-# 4 values x 14 seeds finds all 5 branches of supp-fig5; the tests check that 11 values x 63
-# seeds find nothing more (and the README quotes the timing of the default).
-_SEARCH_GRID = 4
-_SEED_TURNS = tuple(np.linspace(-2.4, 2.4, 7))
-_SEED_ASYM = (0.0, 0.8)
+#: Interior sample values of the search (the range ends and the scene's own value are
+#: samples too); see continuation.BranchSearch for the argument.
+SEARCH_SAMPLES = 3
+#: A located fold whose transversality |psi . F_p| / (|psi| |F_p|) is below this is a
+#: branch point (F_p in the range of F_u), not a fold. Simple folds of this problem measure
+#: 1e-3..1 (supp-fig5: 0.2); a branch point measures round-off (1e-12).
+FOLD_TRANSVERSALITY = 1e-6
+
+
+class StaticsError(RuntimeError):
+    """A numerical failure of the statics (no branch found, ...); the message diagnoses it."""
 
 
 def _check_statics_scene(scene: Scene) -> None:
@@ -94,60 +105,44 @@ def problem_for(
 
 
 def newton(problem, u, p, tol=1e-11, max_iter=40, deflate=(), max_step=0.5):
-    """Damped Newton for F(u, p) = 0 at fixed p, optionally deflated.
+    """Damped, optionally deflated Newton at fixed p (:func:`continuation.deflated_newton`
+    on the problem's ``deflation_indices``); the solution, or None if it did not converge."""
+    idx = getattr(problem, "deflation_indices", None)
+    if idx is None and hasattr(problem, "N"):
+        idx = slice(0, problem.N + 1)
+    res = deflated_newton(problem, u, p, deflate, tol=tol, max_iter=max_iter,
+                          max_step=max_step, indices=idx)
+    return res.u if res.converged else None
 
-    Parameters
-    ----------
-    deflate : sequence of ndarray
-        Known solutions; the deflation operator prod (1/|u - u_i|^2 + 1) keeps Newton away
-        from them (Farrell et al. 2015; shift 1, power 2).
-    max_step : float
-        Largest change of any angle per iteration (radians): damping for far seeds.
+
+def admissible_range(scene: Scene, parameter: str) -> tuple[float, float, str, str]:
+    """The values of ``parameter`` (others as in the scene) for which the wet interval
+    [S1, S2] lies on the rod [0, L] (both dry arms of non-negative length) and every
+    length and modulus is positive.
 
     Returns
     -------
-    ndarray or None
-        The solution, or None when Newton did not converge.
+    (lo, hi, lo_name, hi_name)
+        ``hi`` may be ``inf``; the names say which condition each end is.
     """
-    u = np.array(u, dtype=float)
-    n_th = problem.N + 1
-    r_first = None
-    for it in range(max_iter):
-        with np.errstate(all="ignore"):
-            r = problem.residual(u, p)
-        if not np.all(np.isfinite(r)):
-            return None
-        rn = float(np.max(np.abs(r)))
-        if rn <= tol:
-            return u
-        r_first = rn if r_first is None else r_first
-        # a residual 1e6 times the first one: diverging (a seed far from any solution); no
-        # decrease by half after 12 damped iterations: wandering (deflation pushed it off)
-        if rn > 1e6 * r_first or (it >= 12 and rn > 0.5 * r_first):
-            return None
-        try:
-            du = np.linalg.solve(problem.jacobian(u, p), -r)
-        except np.linalg.LinAlgError:
-            return None
-        if deflate:
-            # Sherman-Morrison: the deflated step is the plain step scaled by
-            # 1 / (1 - grad(ln m) . du)
-            gl = np.zeros_like(u)
-            for ui in deflate:
-                e = u[:n_th] - ui[:n_th]
-                r2 = float(e @ e)
-                if r2 == 0.0:
-                    return None
-                gl[:n_th] += (-2.0 / (r2 * r2)) * e / (1.0 / r2 + 1.0)
-            den = 1.0 - float(gl @ du)
-            if den == 0.0:
-                return None
-            du = du / den
-        big = np.max(np.abs(du[:n_th]))
-        if not np.isfinite(big):
-            return None
-        u = u + (du if big <= max_step else du * (max_step / big))
-    return None
+    L, c, D = scene.rod.length, scene.drop.center, scene.drop.wetted_length
+    if parameter == "drop.wetted_length":
+        hi = 2.0 * min(c, L - c)
+        name = ("S1 = 0 and S2 = L: the wet interval covers the rod" if abs(c - 0.5 * L)
+                <= 1e-12 * L else ("S1 = 0: the wet interval reaches the rod's end S = 0"
+                                   if c < L - c else
+                                   "S2 = L: the wet interval reaches the rod's end S = L"))
+        return 0.0, hi, "Delta = 0: no wet interval", name
+    if parameter == "drop.center":
+        return (0.5 * D, L - 0.5 * D, "S1 = 0: the wet interval reaches the rod's end S = 0",
+                "S2 = L: the wet interval reaches the rod's end S = L")
+    if parameter == "drop.distance_from_end":
+        return (0.5 * D, L - 0.5 * D, "S2 = L: the wet interval reaches the rod's end S = L",
+                "S1 = 0: the wet interval reaches the rod's end S = 0")
+    if parameter == "rod.length":
+        return (c + 0.5 * D, math.inf, "S2 = L: the wet interval reaches the rod's end S = L",
+                "")
+    return 0.0, math.inf, f"{parameter} = 0", ""
 
 
 @dataclass
@@ -160,8 +155,15 @@ class BranchSet:
     labels : list of str
         One per branch: ``"primary"`` (through the nearly flat state), or ``"branch k"``.
     folds : list of dict
-        Every limit point: value, measure, stability_change, error_estimate, branch.
+        Every located, transversal limit point: value, measure, energy, stability_change,
+        error_estimate (a number; None only with ``error_estimates=False``),
+        transversality, branch.
+    unlocated : list of dict
+        Special points that could not be located or confirmed: kind, value (the bracket's
+        best value), measure, branch, reason, what_to_try. Never reported as folds.
     branch_points, maxwell_points, endpoints : list of dict
+        Endpoints have a ``kind``: ``admissible_boundary`` (the reason names it, e.g.
+        "S2 = L"), ``range_end``, ``contact_lines_meet`` or ``endpoint``.
     metadata : dict
         Scene (resolved TOML data), parameter, range, N, nodes, tolerances, version, timing.
     """
@@ -178,6 +180,7 @@ class BranchSet:
     admissibility_changes: list = field(default_factory=list)
     endpoints: list = field(default_factory=list)
     metadata: dict = field(default_factory=dict)
+    unlocated: list = field(default_factory=list)
 
     def summary(self) -> dict:
         """Plain data for ``--json``: special points by kind and one line per branch."""
@@ -190,6 +193,7 @@ class BranchSet:
             "maxwell_points": self.maxwell_points,
             "admissibility_changes": self.admissibility_changes,
             "endpoints": self.endpoints,
+            "unlocated": self.unlocated,
             "branches": [
                 {
                     "label": lab,
@@ -315,19 +319,82 @@ def _settings(scene: Scene, lo: float, hi: float, span: float) -> ContinuationSe
     )
 
 
-def _seeds(problem, turns=_SEED_TURNS, asym=_SEED_ASYM):
-    xi = problem.xi
-    out = []
-    for m in turns:
-        for b in asym:
-            th = 0.5 * math.pi * m * xi + b * (xi * xi - 1.0 / 3.0)
-            out.append(np.concatenate([th, [0.0]]))
-    return out
+def _resolve_range(scene: Scene, parameter: str, prange, p_scene: float):
+    """The search range: the requested (or default) range clipped to the admissible region.
+
+    Returns (lo, hi, note, lo_name, hi_name); the names are set for an end that is the
+    admissible boundary (a branch ending there ends on it).
+    """
+    a_lo, a_hi, lo_name, hi_name = admissible_range(scene, parameter)
+    L = scene.rod.length
+    if prange is None:
+        if parameter == "drop.wetted_length":
+            prange = (0.02 * L, L)
+        else:
+            prange = (0.5 * p_scene, 2.0 * p_scene)
+        user = False
+    else:
+        user = True
+    lo, hi = float(prange[0]), float(prange[1])
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise SceneError("--range", list(prange), "expected two finite numbers LO < HI")
+    if parameter == "drop.wetted_length" and user and (lo <= 0.0 or hi > L * (1 + 1e-12)):
+        raise SceneError("--range", [lo, hi], f"expected 0 < LO < HI <= rod.length = {L}")
+    if hi <= a_lo or lo >= a_hi:
+        raise SceneError(
+            "--range", [lo, hi],
+            f"expected a range that meets the admissible region of {parameter}, "
+            f"({a_lo:.10g}, {a_hi:.10g}) ({lo_name}; {hi_name or 'unbounded above'})")
+    note = ""
+    names = ["", ""]
+    if lo <= a_lo:
+        lo = a_lo + 1e-3 * (hi - a_lo) if a_lo == 0.0 else a_lo
+        names[0] = lo_name
+    if hi >= a_hi:
+        hi = a_hi
+        names[1] = hi_name
+    if (lo, hi) != (float(prange[0]), float(prange[1])):
+        note = (f"range [{prange[0]:.10g}, {prange[1]:.10g}] clipped to the admissible "
+                f"region: [{lo:.10g}, {hi:.10g}]")
+    if not lo < hi:
+        raise SceneError("--range", list(prange), "the admissible part of the range is empty")
+    return lo, hi, note, names[0], names[1]
 
 
-def _same(u, v, tol=1e-6):
-    n = len(u) - 1
-    return float(np.max(np.abs(u[:n] - v[:n]))) <= tol
+def _events(problem: WetElasticaProblem):
+    def contact_lines_meet(u, p):
+        S = problem.state(u, p)
+        return S.d - _CHORD_STOP * S.params["delta"]
+
+    def admissibility(u, p):
+        # +1/2 admissible, -1/2 not: the sign change is located to the bisection tolerance
+        return problem.observables(u, p)["admissible"] - 0.5
+
+    return {"contact_lines_meet": contact_lines_meet, "admissibility": admissibility}
+
+
+def _fold_curve_starts(problem, folds, q_param, q0, settings, q_range, p_bounds):
+    """Points at q = q0 of the fold curves (in ``q_param``) through the located folds."""
+    base = problem.with_(parameter="drop.wetted_length")
+
+    def family(q):
+        return base.with_(**{q_param: q})
+
+    fs = ContinuationSettings(
+        ds0=0.01, ds_max=0.05, max_steps=800, p_min=q_range[0], p_max=q_range[1],
+        direction=0, newton_tol=settings.newton_tol, check_jacobian=False)
+    starts, curves = [], []
+    for sp in folds:
+        try:
+            pts, fc = fold_crossings(family, sp, q0, q0, fs, parameter=q_param,
+                                     p_bounds=p_bounds)
+        except ValueError:
+            continue
+        curves.append(fc)
+        for u, p in pts:
+            if settings.p_min <= p <= settings.p_max:
+                starts.append((u, p))
+    return starts, curves
 
 
 def trace_branches(
@@ -337,10 +404,9 @@ def trace_branches(
     *,
     N: int | None = None,
     nodes: str = "lgl",
-    grid: int = _SEARCH_GRID,
-    seed_turns=_SEED_TURNS,
-    seed_asymmetries=_SEED_ASYM,
+    samples: int = SEARCH_SAMPLES,
     error_estimates: bool = True,
+    fold_curve_seeds: bool = True,
 ) -> BranchSet:
     """Every equilibrium branch of ``scene`` in ``parameter`` over ``prange``.
 
@@ -352,113 +418,91 @@ def trace_branches(
         Scene key continued (``drop.wetted_length``, ``drop.area``, ``drop.line_tension``,
         ``rod.bending_modulus``, ``rod.length``, ``drop.center``, ``drop.distance_from_end``).
     prange : (lo, hi), optional
-        Default for Delta: (0.02 L, L); otherwise 0.5x to 2x the scene's value.
+        Default for Delta: (0.02 L, L); otherwise 0.5x to 2x the scene's value. Clipped to
+        the admissible region (:func:`admissible_range`); the clipping is noted in the
+        metadata and a branch that reaches a clipped end ends there with a named endpoint.
     N : int, optional
         LGL intervals on the wet part (default from ``numerics``).
-    grid : int
-        Number of parameter values of the search.
-    seed_turns, seed_asymmetries : sequences of float
-        Seed shapes: total turning M pi (M in seed_turns) plus b (xi^2 - 1/3) asymmetry.
+    samples : int
+        Interior sample values of the search (:class:`continuation.SearchSettings`).
     error_estimates : bool
-        Relocate each fold at a finer resolution to estimate its discretization error.
+        Relocate each fold at a finer resolution to estimate its discretization error (a
+        fold that cannot be relocated is then reported as unlocated). Without it, folds
+        carry ``error_estimate = None``.
+    fold_curve_seeds : bool
+        For ``drop.wetted_length``: continue every located fold in the drop area and start
+        the search again from every crossing of the scene's area (the folds the fold
+        curves cross are then found even when no seed reaches their branch).
 
     Returns
     -------
     BranchSet
+
+    Raises
+    ------
+    SceneError
+        Bad input (a range outside the admissible region, a scene with gravity, ...).
+    StaticsError
+        No branch was found (the message says what was tried and what to try).
     """
     t0 = time.perf_counter()
     problem = problem_for(scene, parameter, N, nodes)
     p_scene = problem.get(parameter)
-    L = scene.rod.length
-    if prange is None:
-        if parameter == "drop.wetted_length":
-            prange = (0.02 * L, L)
-        else:
-            prange = (0.5 * p_scene, 2.0 * p_scene)
-    lo, hi = float(prange[0]), float(prange[1])
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise SceneError("--range", list(prange), "expected two finite numbers LO < HI")
-    if parameter == "drop.wetted_length" and (lo <= 0.0 or hi > L * (1 + 1e-12)):
-        raise SceneError("--range", [lo, hi], f"expected 0 < LO < HI <= rod.length = {L}")
+    lo, hi, clip_note, lo_name, hi_name = _resolve_range(scene, parameter, prange, p_scene)
     span = hi - lo
     settings = _settings(scene, lo, hi, span)
-    grid_p = np.linspace(lo, hi, grid + 2)[1:-1]
-    known: dict[int, list] = {k: [] for k in range(len(grid_p))}
-
-    def chord_event(u, p):
-        S = problem.state(u, p)
-        return S.d - _CHORD_STOP * problem.params["delta"]
-
-    def admissible_event(u, p):
-        # +1/2 admissible, -1/2 not: the sign change is located to the bisection tolerance
-        return problem.observables(u, p)["admissible"] - 0.5
-
-    events = {"contact_lines_meet": chord_event, "admissibility": admissible_event}
-    for k, pk in enumerate(grid_p):
-        events[f"grid{k}"] = lambda u, p, pk=pk: p - pk
+    events = _events(problem)
+    p_start = p_scene if lo <= p_scene <= hi else 0.5 * (lo + hi)
+    u_flat = np.zeros(problem.N + 2)
+    search = BranchSearch(
+        problem, settings,
+        SearchSettings(samples=samples, sample_values=(p_start,), max_newton=25,
+                       newton_tol=settings.newton_tol, match_radius=0.2),
+        starts=[(u_flat, p_start)], events=events, stop_on=["contact_lines_meet"],
+        parameter=parameter)
+    res = search.run()
+    curves = []
+    n_fold_starts = 0
+    if fold_curve_seeds and parameter == "drop.wetted_length":
+        folds = [sp for br in res.branches for sp in br.folds if sp.located]
+        q0 = problem.get("drop.area")
+        starts, curves = _fold_curve_starts(problem, _distinct(folds), "drop.area", q0,
+                                            settings, (0.25 * q0, 4.0 * q0), (lo, hi))
+        fresh = [(u, p) for u, p in starts
+                 if not any(abs(p - sp.p) <= 1e-8 * (1 + abs(p)) for sp in folds)]
+        n_fold_starts = len(fresh)
+        if fresh:
+            search.extend(fresh)
+    if not res.branches:
+        st = res.stats
+        raise StaticsError(
+            f"no equilibrium branch of {scene.name} found in {parameter} over "
+            f"[{lo:.10g}, {hi:.10g}]: the flat start and {st['seeds_tried']} deflated seeds "
+            f"at {len(res.samples)} sample values all failed (newton_tol="
+            f"{settings.newton_tol:.1e}, N={problem.N}). "
+            + ("; ".join(st["notes"][:3]) + ". " if st["notes"] else "")
+            + "Try a looser numerics.newton_tol (the default is 1e-11), another "
+            "numerics.cheb_points, or a narrower --range.")
     result = BranchSet(scene, parameter, (lo, hi), problem)
-
-    def record(br: Branch) -> bool:
-        """Register the grid crossings of a new branch; False if it duplicates a known one."""
-        if any(_on_branch(problem, br, old) for old in result.branches):
-            return False
-        for sp in br.points("event"):
-            if sp.name.startswith("grid") and sp.u is not None:
-                k = int(sp.name[4:])
-                if not any(_same(sp.u, v) for v in known[k]):
-                    known[k].append(sp.u)
-        return True
-
-    def trace(u, p, label):
-        problem.set(parameter, p)
-        br = continue_branch(problem, u, p, settings, events=events, stop_on=["contact_lines_meet"])
-        if len(br) and record(br):
-            result.branches.append(br)
-            result.labels.append(label)
-            return br
-        return None
-
-    # 1. the primary branch: from the flat rod at the scene's own parameter value
-    problem.set(parameter, p_scene if lo <= p_scene <= hi else 0.5 * (lo + hi))
-    p_start = problem.get(parameter)
-    u_flat = newton(problem, np.zeros(problem.N + 2), p_start, settings.newton_tol)
-    if u_flat is not None:
-        trace(u_flat, p_start, "primary")
-    # 2. deflated seeds on the grid
-    for k, pk in enumerate(grid_p):
-        for seed in _seeds(problem, seed_turns, seed_asymmetries):
-            problem.set(parameter, pk)
-            # 25 iterations: converging seeds need < 15 (angles move <= 0.5 rad each)
-            u = newton(problem, seed, pk, settings.newton_tol, max_iter=25, deflate=known[k])
-            if u is None or any(_same(u, v) for v in known[k]):
-                continue
-            trace(u, pk, f"branch {len(result.branches)}")
-            known[k].append(u)
-    # 3. branch switching at every simple branch point (new branches may have more)
-    done = 0
-    while done < len(result.branches):
-        br = result.branches[done]
-        done += 1
-        for bp in br.branch_points:
-            if not bp.located or "kernel" not in bp.data:
-                continue
-            problem.set(parameter, bp.p)
-            nb = switch_branch(problem, bp, settings, events=events, stop_on=["contact_lines_meet"])
-            if len(nb) and record(nb):
-                result.branches.append(nb)
-                result.labels.append(f"branch {len(result.branches) - 1}")
-    _collect_special_points(result, error_estimates)
+    result.branches = res.branches
+    for k, (br, o) in enumerate(zip(res.branches, res.origins, strict=True)):
+        result.labels.append("primary" if o["how"] == "start" and o.get("start") == 0
+                             and k == 0 else f"branch {k}")
+    _collect_special_points(result, error_estimates, (lo_name, hi_name))
     result.metadata = {
         "scene": scene.data,
         "scene_name": scene.name,
         "parameter": parameter,
         "range": [lo, hi],
+        "range_note": clip_note,
+        "admissible_region": list(admissible_range(scene, parameter)[:2]),
         "N": problem.N,
         "nodes": nodes,
         "newton_tol": settings.newton_tol,
         "locate_tol": settings.locate_tol,
-        "search_grid": [float(v) for v in grid_p],
-        "seeds": len(seed_turns) * len(seed_asymmetries),
+        "search": {**res.to_dict(), "fold_curve_starts": n_fold_starts,
+                   "fold_curves": len(curves)},
+        "error_estimates": bool(error_estimates),
         # the dry arms are straight and unloaded: these keys only move them
         "equilibrium_independent_of_parameter": parameter
         in ("rod.length", "drop.center", "drop.distance_from_end"),
@@ -468,35 +512,13 @@ def trace_branches(
     return result
 
 
-def _on_branch(problem, new: Branch, old: Branch) -> bool:
-    """True if ``new`` is ``old``: its points at a quarter and three quarters of its length
-    (away from a branch point it may start from) both lie on ``old``."""
-    if new.u is None or old.u is None or not len(new) or not len(old):
-        return False
-    return all(
-        _point_on(problem, float(new.p[m]), new.u[m], old)
-        for m in sorted({len(new) // 4, (3 * len(new)) // 4})
-    )
-
-
-def _point_on(problem, pm, um, old: Branch) -> bool:
-    """True if the solution (pm, um) lies on branch ``old``."""
-    par = problem.parameter
-    for i in range(len(old) - 1):
-        a, b = old.p[i], old.p[i + 1]
-        if (a - pm) * (b - pm) > 0.0 or a == b:
-            continue
-        w = (pm - a) / (b - a)
-        guess = (1 - w) * old.u[i] + w * old.u[i + 1]
-        # linear interpolation along a step of <= 3% of the range: within 0.2 rad of the
-        # branch, well inside Newton's basin; farther means another branch
-        if np.max(np.abs(guess[:-1] - um[:-1])) > 0.2:
-            continue
-        problem.set(par, pm)
-        u = newton(problem, guess, pm, 1e-11)
-        if u is not None and _same(u, um, 1e-6):
-            return True
-    return False
+def _distinct(folds):
+    out = []
+    for sp in folds:
+        if not any(abs(sp.p - o.p) <= 1e-8 * (1 + abs(sp.p))
+                   and np.max(np.abs(sp.u - o.u)) < 1e-6 for o in out):
+            out.append(sp)
+    return out
 
 
 def _stability_change(br: Branch, idx: int) -> str:
@@ -505,20 +527,15 @@ def _stability_change(br: Branch, idx: int) -> str:
     return f"{a}->{b}"
 
 
-def _fold_error(problem: WetElasticaProblem, sp) -> float:
+def _fold_error(problem: WetElasticaProblem, sp) -> tuple[float | None, str]:
     """|p_N - p_N2| with N2 = N + max(8, N/2): the fold relocated at a finer resolution.
 
     For spectral convergence the finer value is far more accurate, so this difference
-    estimates (slightly over-estimates) the error of the value reported at N.
+    estimates (slightly over-estimates) the error of the value reported at N. Returns
+    (estimate, "") or (None, reason).
     """
     N2 = problem.N + max(8, problem.N // 2)
-    fine = WetElasticaProblem(
-        N2,
-        *(problem.params[k] for k in ("delta", "area", "gamma", "B", "L", "center")),
-        problem.parameter,
-        problem.nodes,
-    )
-    fine.set(problem.parameter, sp.p)
+    fine = problem.with_(N=N2)
     Mi = problem.interp_matrix(fine.xi)
     th = Mi @ sp.u[: problem.N + 1]
     u2 = np.concatenate([th, [0.0]])
@@ -528,47 +545,98 @@ def _fold_error(problem: WetElasticaProblem, sp) -> float:
         v2 = np.concatenate([Mi @ np.asarray(v)[: problem.N + 1], [0.0]])
     fine_sp = locate_fold(fine, u2, sp.p, v=v2)
     if not fine_sp.located:
-        return math.nan
-    return abs(fine_sp.p - sp.p)
+        return None, (f"the fold did not relocate at the finer resolution N={N2} "
+                      f"({fine_sp.data.get('message', '')})")
+    return abs(fine_sp.p - sp.p), ""
 
 
-def _collect_special_points(result: BranchSet, error_estimates: bool) -> None:
+def _transversality(problem, u, p, kernel) -> float:
+    """|psi . F_p| / (|psi| |F_p|) at a singular point (psi: left null vector of F_u).
+
+    Non-zero at a fold (F_p is not in the range of F_u), zero at a branch point.
+    """
+    J = problem.jacobian(u, p)
+    Fp = problem.dfdp(u, p)
+    nFp = float(np.linalg.norm(Fp))
+    if nFp == 0.0:
+        return 0.0
+    # the left null vector of F_u: the smallest left singular vector
+    Uu, _sv, _ = np.linalg.svd(J)
+    psi = Uu[:, -1]
+    return abs(float(psi @ Fp)) / nFp
+
+
+def _obs(problem, sp):
+    return problem.observables(sp.u, sp.p) if sp.u is not None else {}
+
+
+def _num(v):
+    """A float, or None for NaN/inf (JSON numbers are numbers or null)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _collect_special_points(result: BranchSet, error_estimates: bool, end_names) -> None:
     problem = result.problem
-    par = result.parameter
+    lo, hi = result.prange
+    unlocated = []
     for b, br in enumerate(result.branches):
         for sp in br.special_points:
-            obs = {}
-            if sp.u is not None:
-                problem.set(par, sp.p)
-                obs = problem.observables(sp.u, sp.p)
+            obs = _obs(problem, sp)
+            meas = _num(obs.get("measure", math.nan))
             if sp.kind == "fold":
-                err = math.nan
-                if error_estimates and sp.located:
-                    problem.set(par, sp.p)
-                    err = _fold_error(problem, sp)
-                result.folds.append(
-                    {
-                        "value": float(sp.p),
-                        "measure": float(obs.get("measure", math.nan)),
-                        "energy": float(obs.get("energy", math.nan)),
-                        "stability_change": _stability_change(br, sp.index),
-                        "error_estimate": err,
-                        "located": bool(sp.located),
-                        "branch": b,
-                        **(
-                            {"message": sp.data["message"]}
-                            if not sp.located and "message" in sp.data
-                            else {}
-                        ),
-                    }
-                )
+                entry = {"value": float(sp.p), "measure": meas,
+                         "energy": _num(obs.get("energy", math.nan)),
+                         "stability_change": _stability_change(br, sp.index),
+                         "located": True, "branch": b}
+                reason, hint = "", ""
+                if not sp.located:
+                    reason = ("the fold was bracketed but its Newton did not converge: "
+                              + sp.data.get("message", "no message"))
+                    hint = ("try a finer numerics.cheb_points or a narrower --range around "
+                            f"{sp.p:.6g}")
+                else:
+                    tr = _transversality(problem, sp.u, sp.p, sp.data.get("kernel"))
+                    entry["transversality"] = tr
+                    if tr < FOLD_TRANSVERSALITY:
+                        reason = (f"the singular point is a branch point, not a fold "
+                                  f"(transversality |psi.F_p|/|F_p| = {tr:.1e})")
+                        hint = "it is listed with the branch points"
+                        result.branch_points.append({
+                            "value": float(sp.p), "measure": meas,
+                            "stability_change": _stability_change(br, sp.index),
+                            "located": True, "branch": b})
+                    elif error_estimates:
+                        err, why = _fold_error(problem, sp)
+                        if err is None:
+                            reason = why
+                            hint = ("try a finer numerics.cheb_points (e.g. "
+                                    f"{problem.N + 16}) or a narrower --range around "
+                                    f"{sp.p:.6g}")
+                        else:
+                            entry["error_estimate"] = err
+                    else:
+                        entry["error_estimate"] = None
+                if reason:
+                    unlocated.append({"kind": "fold", "value": float(sp.p), "measure": meas,
+                                      "branch": b, "reason": reason, "what_to_try": hint})
+                else:
+                    result.folds.append(entry)
             elif sp.kind == "branch_point":
+                if not sp.located:
+                    unlocated.append({"kind": "branch_point", "value": float(sp.p),
+                                      "measure": meas, "branch": b,
+                                      "reason": "bracketed by a sign change of the bordered "
+                                      "determinant, not located",
+                                      "what_to_try": "a finer numerics.cheb_points or a "
+                                      "narrower --range"})
+                    continue
                 result.branch_points.append(
                     {
                         "value": float(sp.p),
-                        "measure": float(obs.get("measure", math.nan)),
+                        "measure": meas,
                         "stability_change": _stability_change(br, sp.index),
-                        "located": bool(sp.located),
+                        "located": True,
                         "branch": b,
                     }
                 )
@@ -577,28 +645,69 @@ def _collect_special_points(result: BranchSet, error_estimates: bool) -> None:
                 result.admissibility_changes.append(
                     {
                         "value": float(sp.p),
-                        "measure": float(obs.get("measure", math.nan)),
-                        "precision": float(sp.precision),
+                        "measure": meas,
+                        "precision": _num(sp.precision),
                         "branch": b,
                     }
                 )
             elif sp.kind == "endpoint" or (sp.kind == "event" and sp.name == "contact_lines_meet"):
-                reason = "contact lines meet" if sp.kind == "event" else br.message
+                if sp.kind == "event":
+                    kind, reason = "contact_lines_meet", "contact lines meet"
+                elif sp.p == hi and end_names[1]:
+                    kind, reason = "admissible_boundary", end_names[1]
+                elif sp.p == lo and end_names[0]:
+                    kind, reason = "admissible_boundary", end_names[0]
+                elif sp.p in (lo, hi):
+                    kind, reason = "range_end", "the end of the requested range"
+                else:
+                    kind, reason = "endpoint", br.message
                 result.endpoints.append(
-                    {
-                        "value": float(sp.p),
-                        "measure": float(obs.get("measure", math.nan)),
-                        "kind": "contact_lines_meet" if sp.kind == "event" else "endpoint",
-                        "reason": reason,
-                        "branch": b,
-                    }
+                    {"value": float(sp.p), "measure": meas, "kind": kind, "reason": reason,
+                     "branch": b}
                 )
+    _merge_pitchfork_tips(result, unlocated)
     # dedupe mirror images / the same point reached from two branches
     result.folds = _dedupe(result.folds)
     result.admissibility_changes = _dedupe(result.admissibility_changes)
     result.branch_points = _dedupe(result.branch_points)
+    result.unlocated = _dedupe(unlocated)
     result.folds.sort(key=lambda f: f["value"])
     result.maxwell_points = _maxwell_points(result)
+
+
+def _merge_pitchfork_tips(result: BranchSet, unlocated: list) -> None:
+    """A pitchfork seen from its bifurcating branch: that branch turns there (a fold in p
+    that is no fold of the scene) and its branch point is degenerate (fold and branch point
+    in one), so neither is located well. Where a branch point located on another branch
+    lies within the bracket, the points of the bifurcating branch are that branch point:
+    they are dropped (the located value is kept)."""
+    tips = set()
+    for b, br in enumerate(result.branches):
+        fold_steps = {sp.index for sp in br.folds}
+        for sp in br.branch_points:
+            if sp.index in fold_steps:
+                tips.add((b, round(float(sp.p), 12)))
+    good = [f for f in result.branch_points if (f["branch"], round(f["value"], 12)) not in tips]
+    span = result.prange[1] - result.prange[0]
+
+    def near_good(f, width):
+        return any(g["branch"] != f["branch"] and abs(g["value"] - f["value"]) <= width
+                   for g in good)
+
+    result.branch_points = [
+        f for f in result.branch_points
+        if (f["branch"], round(f["value"], 12)) not in tips or not near_good(f, 1e-3 * span)]
+    keep = []
+    for f in unlocated:
+        br = result.branches[f["branch"]]
+        # the bracketing step's arclength bounds the distance to the point
+        width = next((2.0 * max(sp.precision, float(br.ds[min(sp.index, len(br) - 1)]))
+                      for sp in br.special_points
+                      if sp.kind in ("fold", "branch_point") and not sp.located
+                      and sp.p == f["value"] and math.isfinite(sp.precision)), 0.0)
+        if not near_good(f, width + 1e-9):
+            keep.append(f)
+    unlocated[:] = keep
 
 
 def _dedupe(points):
@@ -606,14 +715,15 @@ def _dedupe(points):
     for f in points:
         if not any(
             abs(f["value"] - g["value"]) <= 1e-8 * max(1.0, abs(g["value"]))
-            and abs(f["measure"] - g["measure"]) <= 1e-6
+            and abs((f["measure"] or 0.0) - (g["measure"] or 0.0)) <= 1e-6
+            and f.get("kind") == g.get("kind")
             for g in out
         ):
             out.append(f)
     return out
 
 
-def _stable_runs(br: Branch):
+def stable_runs(br: Branch):
     """Index ranges [a, b] of consecutive stable points along which p is monotone."""
     runs = []
     n = len(br)
@@ -633,7 +743,7 @@ def _stable_runs(br: Branch):
     return runs
 
 
-def _solve_on_run(problem, br, i, j, p):
+def solve_on_run(problem, br, i, j, p):
     """The state of branch ``br`` at parameter ``p`` within the monotone run [i, j]."""
     ps = br.p[i : j + 1]
     order = np.argsort(ps)
@@ -641,16 +751,14 @@ def _solve_on_run(problem, br, i, j, p):
     us = br.u[i : j + 1][order]
     k = int(np.clip(np.searchsorted(ps, p), 1, len(ps) - 1))
     w = 0.0 if ps[k] == ps[k - 1] else (p - ps[k - 1]) / (ps[k] - ps[k - 1])
-    problem.set(problem.parameter, p)
     return newton(problem, (1 - w) * us[k - 1] + w * us[k], p, 1e-12)
 
 
 def _energy_gap(problem, run_a, run_c, p):
-    ua = _solve_on_run(problem, *run_a, p)
-    uc = _solve_on_run(problem, *run_c, p)
+    ua = solve_on_run(problem, *run_a, p)
+    uc = solve_on_run(problem, *run_c, p)
     if ua is None or uc is None:
         return math.nan
-    problem.set(problem.parameter, p)
     return problem.energy(ua, p) - problem.energy(uc, p)
 
 
@@ -662,7 +770,7 @@ def _maxwell_points(result: BranchSet) -> list:
         (b, (br, i, j))
         for b, br in enumerate(result.branches)
         if br.u is not None
-        for i, j in _stable_runs(br)
+        for i, j in stable_runs(br)
     ]
     out = []
     for a in range(len(runs)):
@@ -689,8 +797,8 @@ def _maxwell_points(result: BranchSet) -> list:
                     xtol=1e-13,
                     rtol=1e-14,
                 )
-                ua = _solve_on_run(problem, *ra, pm)
-                uc = _solve_on_run(problem, *rc, pm)
+                ua = solve_on_run(problem, *ra, pm)
+                uc = solve_on_run(problem, *rc, pm)
                 out.append(
                     {
                         "value": float(pm),
@@ -706,5 +814,6 @@ def _maxwell_points(result: BranchSet) -> list:
 
 
 def find_folds(scene: Scene, parameter: str = "drop.wetted_length", prange=None, **kw) -> list:
-    """The limit points of every branch (see :func:`trace_branches`)."""
+    """The located folds of every branch (see :func:`trace_branches`; the points that could
+    not be located are in ``trace_branches(...).unlocated``)."""
     return trace_branches(scene, parameter, prange, **kw).folds

@@ -31,7 +31,7 @@ def draw_shape(ax, problem, u, p, color="k", drop_color="tab:blue", ground=False
     rod, iface = shp["rod"], shp["interface"]
     # the drop region: interface from x1 to x2, then the wet rod back from x2 to x1
     s = shp["s"]
-    prm = problem.params
+    prm = problem.params_at(p)
     s1 = prm["center"] - 0.5 * prm["delta"]
     s2 = prm["center"] + 0.5 * prm["delta"]
     wet = rod[(s >= s1 - 1e-12) & (s <= s2 + 1e-12)]
@@ -158,13 +158,11 @@ def _add_insets(fig, ax, bs, y, n):
         d = np.min([np.hypot(*((pts - pts[c]) / span).T) for c in chosen], axis=0)
         chosen.append(int(np.argmax(d)))
     problem = bs.problem
-    saved = {k: problem.params[k] for k in problem.params}
     for k, c in enumerate(chosen):
         b, i = cands[c]
         br = bs.branches[b]
         x0, y0 = pts[c]
         ax_in = ax.inset_axes([0.02 + 0.245 * k, 0.62 if k % 2 else 0.05, 0.2, 0.3])
-        problem.set(bs.parameter, float(br.p[i]))
         draw_shape(ax_in, problem, br.u[i], float(br.p[i]), color=_COLORS[b % len(_COLORS)])
         ax_in.set_title(f"{br.p[i]:.2f}", fontsize=6)
         ax.annotate(
@@ -175,4 +173,4 @@ def _add_insets(fig, ax, bs, y, n):
             textcoords=ax_in.transAxes,
             arrowprops={"arrowstyle": "-", "color": "0.5", "lw": 0.5},
         )
-    problem.params.update(saved)
+

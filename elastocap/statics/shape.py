@@ -73,7 +73,7 @@ def full_shape(problem, u, p=None, n_wet=_N_WET_SAMPLES):
         ``interface`` : ndarray (k, 2), the drop's free surface from x(S1) to x(S2).
     """
     S = problem.state(u, p)
-    prm = problem.params
+    prm = S.params if getattr(S, "params", None) is not None else problem.params
     delta, L, center = prm["delta"], prm["L"], prm["center"]
     s1 = center - 0.5 * delta
     s2 = center + 0.5 * delta
@@ -145,18 +145,18 @@ def measures(problem, u, p=None) -> dict[str, float]:
     and |phi| < 2 pi).
     """
     S = problem.state(u, p)
-    shp = full_shape(problem, u)
+    shp = full_shape(problem, u, p)
     rod = shp["rod"]
     iface = shp["interface"]
     rod_x = count_crossings(rod, rod, True, 0, len(rod))
     # the interface starts and ends on the rod: skip its first and last segments
     if_x = count_crossings(iface, rod, False, 1, len(iface) - 2)
-    L = problem.params["L"]
+    L = (S.params if getattr(S, "params", None) is not None else problem.params)["L"]
     end = float(np.hypot(*(rod[-1] - rod[0])))
     adm = float(rod_x == 0 and if_x == 0 and abs(S.tau) < math.pi)
     return {
         "measure": encapsulation_measure(S.theta[0], S.theta[-1]),
-        "energy": problem.energy(u),
+        "energy": problem.energy(u, p),
         "tip_angle": float(S.theta[-1]),
         "cap_angle": 2.0 * S.tau,
         "chord": S.d,

@@ -90,6 +90,7 @@ class WetState:
     kappa: float
     grad_a0: np.ndarray
     grad_d: np.ndarray
+    params: dict | None = None
 
 
 class WetElasticaProblem(Problem):
@@ -140,55 +141,103 @@ class WetElasticaProblem(Problem):
         self._cache_val = None
 
     # -------------------------------------------------------------------- parameters
+    def with_(self, parameter: str | None = None, N: int | None = None,
+              nodes: str | None = None, **values) -> WetElasticaProblem:
+        """A new problem with some scene keys changed (this one is not modified).
+
+        ``values`` are scene keys (``P.with_(**{"drop.area": 1.2})``); ``parameter``
+        chooses the continued key, ``N`` and ``nodes`` the discretization.
+        """
+        prm = dict(self.params)
+        for key, value in values.items():
+            if key not in PARAMETERS:
+                raise ValueError(
+                    f"{key}: not a parameter of the wet elastica; expected one of "
+                    f"{', '.join(PARAMETERS)}")
+            prm.update(self._assign(prm, key, value))
+        return WetElasticaProblem(
+            self.N if N is None else N,
+            prm["delta"], prm["area"], prm["gamma"], prm["B"], prm["L"], prm["center"],
+            self.parameter if parameter is None else parameter,
+            self.nodes if nodes is None else nodes,
+        )
+
     def with_parameter(self, parameter: str) -> WetElasticaProblem:
         """The same problem continued in another scene key."""
-        p = self.params
-        return WetElasticaProblem(
-            self.N,
-            p["delta"],
-            p["area"],
-            p["gamma"],
-            p["B"],
-            p["L"],
-            p["center"],
-            parameter,
-            self.nodes,
-        )
+        return self.with_(parameter=parameter)
+
+    @staticmethod
+    def _assign(prm: dict, key: str, value: float) -> dict:
+        attr = PARAMETERS[key]
+        if attr == "x_end":
+            return {"center": prm["L"] - float(value)}
+        return {attr: float(value)}
+
+    def params_at(self, p: float | None) -> dict:
+        """The parameters with the continued key at value ``p`` (``None``: as built)."""
+        if p is None:
+            return self.params
+        prm = dict(self.params)
+        prm.update(self._assign(prm, self.parameter, p))
+        return prm
 
     def interp_matrix(self, xi) -> np.ndarray:
         """Interpolation from the nodes to points ``xi`` of [-1, 1]."""
         return self._f_interp(self.N, xi)
 
-    def get(self, key: str) -> float:
-        """Value of a scene key."""
+    def get(self, key: str, p: float | None = None) -> float:
+        """Value of a scene key (at continuation value ``p`` when given)."""
+        prm = self.params_at(p)
         attr = PARAMETERS[key]
         if attr == "x_end":
-            return self.params["L"] - self.params["center"]
-        return self.params[attr]
+            return prm["L"] - prm["center"]
+        return prm[attr]
 
-    def set(self, key: str, value: float) -> None:
-        """Set a scene key (``drop.distance_from_end`` moves the centre)."""
-        attr = PARAMETERS[key]
-        if attr == "x_end":
-            self.params["center"] = self.params["L"] - float(value)
-        else:
-            self.params[attr] = float(value)
-        self._cache_key = None
+    # -------------------------------------------------------------------- seeds
+    #: Total turning of the wet part of the seed shapes, in units of pi: the rod can turn
+    #: by at most 2 pi around a drop before it crosses itself, so -2..2 at spacing 2 pi/3
+    #: covers every admissible turning (both senses: curling towards the drop and away).
+    SEED_TURNS = tuple(np.linspace(-2.0, 2.0, 7))
+    #: Asymmetric perturbations b (xi^2 - 1/3) of each seed (the first odd mode of the
+    #: angle about the gauge): 0 and 0.8, so mirror-asymmetric branches are seeded (the
+    #: mirror image of a solution is a solution: one sign suffices).
+    SEED_ASYMMETRIES = (0.0, 0.8)
 
-    def _with_p(self, p):
-        if p != self.get(self.parameter):
-            self.set(self.parameter, p)
+    def seeds(self, p: float):
+        """Seed shapes at ``p`` from the physics of the wet part.
+
+        Uniformly curved wet parts with total turning ``M pi`` (``SEED_TURNS``, the
+        admissible range of turning at spacing pi/3) and the *wrapping* arc: the wet part
+        bent along the circle of the drop's own area (radius ``sqrt(A/pi)``, total
+        turning ``Delta / R``, capped at 2 pi) in both senses; each with the asymmetric
+        perturbations ``SEED_ASYMMETRIES``.
+        """
+        prm = self.params_at(p)
+        R = math.sqrt(prm["area"] / math.pi)
+        wrap = min(prm["delta"] / R, 2.0 * math.pi) / math.pi
+        turns = sorted(set(self.SEED_TURNS) | {wrap, -wrap})
+        xi = self.xi
+        out = []
+        for m in turns:
+            for b in self.SEED_ASYMMETRIES:
+                th = 0.5 * math.pi * m * xi + b * (xi * xi - 1.0 / 3.0)
+                out.append(np.concatenate([th, [0.0]]))
+        return out
+
+    @property
+    def deflation_indices(self) -> slice:
+        """Deflation and damping act on the angles (not on the multiplier omega)."""
+        return slice(0, self.N + 1)
 
     # -------------------------------------------------------------------- geometry
     def state(self, u: np.ndarray, p: float | None = None) -> WetState:
         """Geometry of the wet part for unknowns ``u`` (at parameter value ``p``)."""
-        if p is not None:
-            self._with_p(p)
-        key = (u.tobytes(), tuple(self.params.values()))
+        prm = self.params_at(p)
+        key = (u.tobytes(), tuple(prm.values()))
         if key == self._cache_key:
             return self._cache_val
         th = u[: self.N + 1]
-        h = 0.5 * self.params["delta"]
+        h = 0.5 * prm["delta"]
         c, s = np.cos(th), np.sin(th)
         x = h * (self.Qh @ c)
         z = h * (self.Qh @ s)
@@ -196,13 +245,13 @@ class WetElasticaProblem(Problem):
         a0 = 0.5 * float(w @ (x * s - z * c))
         xN, zN = x[-1], z[-1]
         d = math.hypot(xN, zN)
-        tau, st, ct, lam, kappa = cap_geometry(self.params["area"] - a0, d)
+        tau, st, ct, lam, kappa = cap_geometry(prm["area"] - a0, d)
         # grad A0_j = -1/2 sum_k w_k Q_kj cos(th_k - th_j) + 1/2 w_j (x_j c_j + z_j s_j)
         Q = h * self.Qh
         wc, ws = w * c, w * s
         grad_a0 = -0.5 * (c * (wc @ Q) + s * (ws @ Q)) + 0.5 * w * (x * c + z * s)
         grad_d = Q[-1] * (-xN * s + zN * c) / d
-        st_ = WetState(th, x, z, a0, d, tau, st, ct, lam, kappa, grad_a0, grad_d)
+        st_ = WetState(th, x, z, a0, d, tau, st, ct, lam, kappa, grad_a0, grad_d, prm)
         self._cache_key, self._cache_val = key, st_
         return st_
 
@@ -210,20 +259,22 @@ class WetElasticaProblem(Problem):
         """E_N: bending of the wet part + gamma lambda (the arms are straight)."""
         S = self.state(u, p)
         th = S.theta
+        prm = S.params
         return (
-            0.5 * self.params["B"] * (2.0 / self.params["delta"]) * float(th @ self.K @ th)
-            + self.params["gamma"] * S.lam
+            0.5 * prm["B"] * (2.0 / prm["delta"]) * float(th @ self.K @ th)
+            + prm["gamma"] * S.lam
         )
 
     def _grad(self, S):
-        B, gam, delta = self.params["B"], self.params["gamma"], self.params["delta"]
+        prm = S.params
+        B, gam, delta = prm["B"], prm["gamma"], prm["delta"]
         return B * (2.0 / delta) * (self.K @ S.theta) + gam * (
             -S.kappa * S.grad_a0 + S.cos_tau * S.grad_d
         )
 
     def _lambda_second(self, S):
         """Second derivatives of lambda(A1, d): (L_AA, L_Ad, L_dd)."""
-        a1 = self.params["area"] - S.a0
+        a1 = S.params["area"] - S.a0
         ta, td = cap_tau_derivatives(S.tau, S.sin_tau, S.cos_tau, a1, S.d)
         l_aa = 2.0 * S.cos_tau * ta / S.d
         l_ad = -S.sin_tau * ta
@@ -241,7 +292,7 @@ class WetElasticaProblem(Problem):
     def hessian(self, u, p):
         """Hessian of E_N in theta, shape (N+1, N+1) (symmetric)."""
         S = self.state(u, p)
-        B, gam, delta = self.params["B"], self.params["gamma"], self.params["delta"]
+        B, gam, delta = S.params["B"], S.params["gamma"], S.params["delta"]
         h = 0.5 * delta
         th, x, z = S.theta, S.x, S.z
         c, s = np.cos(th), np.sin(th)
@@ -287,7 +338,7 @@ class WetElasticaProblem(Problem):
 
     def dfdp(self, u, p):
         S = self.state(u, p)
-        B, gam, delta = self.params["B"], self.params["gamma"], self.params["delta"]
+        B, gam, delta = S.params["B"], S.params["gamma"], S.params["delta"]
         key = PARAMETERS[self.parameter]
         out = np.zeros(self.n)
         cap = -S.kappa * S.grad_a0 + S.cos_tau * S.grad_d
@@ -320,8 +371,7 @@ class WetElasticaProblem(Problem):
         from elastocap.statics.shape import measures
 
         # the continuation records them and the admissibility event asks again: compute once
-        self._with_p(p)
-        key = (u.tobytes(), tuple(self.params.values()))
+        key = (u.tobytes(), tuple(self.params_at(p).values()))
         if getattr(self, "_obs_key", None) != key:
             self._obs_key, self._obs_val = key, measures(self, u, p)
         return dict(self._obs_val)

@@ -117,7 +117,6 @@ def test_continuation_started_exactly_at_the_fold():
     found again on the way at the same value."""
     P, sp = _fold_state()
     assert abs(sp.p - FOLD_REF) < 1e-11
-    P.set("drop.wetted_length", sp.p)
     br = continue_branch(P, sp.u, sp.p, _settings(3.3, 3.7))
     assert br.p[0] == pytest.approx(3.7) and br.p[-1] == pytest.approx(3.7), br.message
     assert br.p.min() >= sp.p - 1e-12  # nothing on this branch lies left of its fold
@@ -131,7 +130,6 @@ def test_continuation_started_exactly_at_a_branch_point(default_set):
     br0 = default_set.branches[bp["branch"]]
     sp = next(s for s in br0.branch_points if abs(s.p - bp["value"]) < 1e-9)
     P = default_set.problem
-    P.set("drop.wetted_length", sp.p)
     br = continue_branch(P, sp.u, sp.p, _settings(sp.p - 0.3, min(sp.p + 0.3, 4.6)))
     assert len(br) > 5 and np.all(np.isfinite(br.p)), br.message
     assert br.status in (0, 1) or "bound" in br.message or "contact" in br.message, br.message

@@ -71,13 +71,7 @@ def test_contact_lines_meet_ends_the_inverted_branch(fig6):
 
 
 def test_search_is_complete_denser_grid_finds_nothing_new(fig6):
-    dense = trace_branches(
-        load_scene("supp-fig5"),
-        grid=11,
-        seed_turns=np.linspace(-3.0, 3.0, 21),
-        seed_asymmetries=(-0.8, 0.0, 0.8),
-        error_estimates=False,
-    )
+    dense = trace_branches(load_scene("supp-fig5"), samples=8, error_estimates=False)
     assert len(dense.branches) == len(fig6.branches)
     assert len(dense.folds) == len(fig6.folds)
     assert len(dense.branch_points) == len(fig6.branch_points)
