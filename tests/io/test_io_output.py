@@ -192,3 +192,27 @@ def test_read_only_folder_and_store_refused(tmp_path, monkeypatch, capsys):
     finally:
         ro.chmod(0o755)
     assert list(ro.iterdir()) == []
+
+
+def test_unwritable_store_refused_before_any_run(tmp_path, monkeypatch, capsys):
+    """An existing store that cannot be opened for writing: refused by ``sweep`` before any
+    run, naming --store (simulated for root)."""
+    import elastocap.io
+
+    monkeypatch.chdir(tmp_path)
+    store = tmp_path / "s.sqlite"
+    store.write_bytes(b"")
+
+    def denied(path, mode="r", *a, **k):
+        if "a" in mode:
+            raise PermissionError(13, "Permission denied")
+        return open(path, mode, *a, **k)
+
+    monkeypatch.setattr(elastocap.io, "open", denied, raising=False)
+    assert main(["sweep", "fig3-strip", "--x", "1:2:2", "--delta", "1:2:2", "--store",
+                 "s.sqlite", "--out", "o"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("elastocap: error: --store: got 's.sqlite'; not writable") and (
+        err.count("\n") == 1
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
