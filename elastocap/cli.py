@@ -288,7 +288,8 @@ def cmd_figures(args) -> int:
         # figures that resume from their own earlier output write straight into the folder
         with heartbeat(progress, k, len(names), f"drawing {name}"):
             paths = run_figures(folder.path, only=name, fast=args.fast)[name]
-        written[name] = folder.adopt(paths)
+        # each figure owns its own files: --only one figure leaves the others alone
+        written[name] = OutputFolder(folder.path, f"figure-{name}").adopt(paths)
     progress(len(names), len(names), "done")
     progress.close()
     if args.json:
