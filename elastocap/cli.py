@@ -92,23 +92,33 @@ def _stem_value(v: float) -> str:
     return f"{v:.6g}"
 
 
-def _trace(args, scene=None):
+def _progress(args, label: str):
+    """The command's progress reporter on stderr (``--progress``; none without the option)."""
+    from elastocap.progress import make_progress
+
+    return make_progress(getattr(args, "progress", "none"), label=label, unit="steps",
+                         every=0.0)
+
+
+def _trace(args, scene=None, progress=None, step=(0, 0)):
+    from elastocap.progress import NoProgress, heartbeat
     from elastocap.statics.branches import trace_branches
 
     scene = _load(args) if scene is None else scene
     check_resources(scene, "statics", getattr(args, "force", False))
+    progress = NoProgress() if progress is None else progress
     prange = tuple(args.range) if args.range else None
-    if scene.effects.gravity > 0 or scene.effects.ground:
-        # the strip on the ground: one model (the discrete strip, every contact topology)
-        from elastocap.strip.trace import trace_contact_branches
+    note = f"tracing the branches of {scene.name} in {args.param} (compiles on first use)"
+    with heartbeat(progress, *step, note):
+        if scene.effects.gravity > 0 or scene.effects.ground:
+            # the strip on the ground: one model (the discrete strip, every contact topology)
+            from elastocap.strip.trace import trace_contact_branches
 
-        progress = None
-        if not args.json:
-            def progress(label, br):
-                print(f"  traced {label}: {len(br.segments)} segments, {br.status}",
-                      file=sys.stderr)
-        return trace_contact_branches(scene, args.param, prange, progress=progress)
-    return trace_branches(scene, args.param, prange)
+            def traced(label, br):
+                progress(*step, f"traced {label}: {len(br.segments)} segments, {br.status}")
+
+            return trace_contact_branches(scene, args.param, prange, progress=traced)
+        return trace_branches(scene, args.param, prange)
 
 
 def _fold_report(bs) -> dict:
@@ -148,7 +158,9 @@ def cmd_branches(args) -> int:
 
     scene = _load(args)
     folder = _out_folder(args, f"branches-{scene.name}", "branches")
-    bs = _trace(args, scene)
+    progress = _progress(args, "branches")
+    bs = _trace(args, scene, progress, (0, 2))
+    progress(1, 2, f"{len(bs.branches)} branches traced; writing the files and the figure")
     if isinstance(bs, BranchSet):
         paths = bs.save(folder)
     else:  # the strip's branch sets write their own files: staged, then moved in
@@ -160,6 +172,8 @@ def cmd_branches(args) -> int:
     else:
         plot = plot_branch_set
     paths.append(folder.savefig(lambda path: plot(bs, path), "branches.png"))
+    progress(2, 2, "done")
+    progress.close()
     out = folder.path
     if args.json:
         rep = _fold_report(bs)
@@ -178,7 +192,10 @@ def cmd_folds(args) -> int:
     rtol = DEFAULT_RTOL if args.rtol is None else args.rtol
     if not (rtol > 0 and math.isfinite(rtol)):
         raise UsageError(f"--rtol: got {rtol!r}; expected a finite number > 0")
-    bs = _trace(args)
+    progress = _progress(args, "folds")
+    bs = _trace(args, progress=progress, step=(0, 1))
+    progress(1, 1, f"folds located: {len(bs.folds)}")
+    progress.close()
     if expected is not None:
         ok, table = compare_folds(bs.folds, expected, rtol)
         if args.json:
@@ -206,7 +223,12 @@ def cmd_impact(args) -> int:
         f"-x{_stem_value(scene.distance_from_end)}"
     )
     folder = _out_folder(args, f"impact-{scene.name}", stem)
-    res = run_impact(scene)
+    from elastocap.progress import heartbeat
+
+    progress = _progress(args, "impact")
+    with heartbeat(progress, 0, 2, f"running the impact of {scene.name} (compiles on first use)"):
+        res = run_impact(scene)
+    progress(1, 2, f"{res.outcome} after {res.steps} steps; writing the files and the figure")
     rep = res.to_dict()
     from elastocap.frames import frame_strip
 
@@ -220,6 +242,8 @@ def cmd_impact(args) -> int:
         lambda path: frame_strip(res, scene, path, k=args.frames or 8), f"{stem}-frames.png"
     )
     rep["files"] = [str(folder.path / f"{stem}.npz"), str(js), str(png)]
+    progress(2, 2, "done")
+    progress.close()
     if args.json:
         _print_json(rep)
     else:
@@ -248,13 +272,19 @@ def cmd_figures(args) -> int:
     if args.only and args.only not in FIGURES:
         raise UsageError(f"--only: got {args.only!r}; expected one of {', '.join(FIGURES)}")
     folder = _out_folder(args, "figures", "figures")
+    from elastocap.progress import heartbeat
+
     written = {}
-    for name in FIGURES:
-        if args.only and name != args.only:
-            continue
+    names = [n for n in FIGURES if not args.only or n == args.only]
+    progress = _progress(args, "figures")
+    for k, name in enumerate(names):
         # figures that resume from their own earlier output write straight into the folder
-        paths = run_figures(folder.path, only=name, fast=args.fast)[name]
-        written[name] = folder.adopt(paths)
+        with heartbeat(progress, k, len(names), f"drawing {name}"):
+            paths = run_figures(folder.path, only=name, fast=args.fast)[name]
+        # each figure owns its own files: --only one figure leaves the others alone
+        written[name] = OutputFolder(folder.path, f"figure-{name}").adopt(paths)
+    progress(len(names), len(names), "done")
+    progress.close()
     if args.json:
         _print_json({"figures": {k: [str(p) for p in v] for k, v in written.items()}})
     else:
@@ -279,7 +309,14 @@ def cmd_overlay(args) -> int:
     stem = (f"overlay-{scene.name}-delta{_stem_value(deltas.min())}-"
             f"{_stem_value(deltas.max())}-{len(deltas)}")
     folder = _out_folder(args, f"overlay-{scene.name}", stem)
-    res = run_overlay(scene, deltas, None)
+    from elastocap.progress import heartbeat
+
+    progress = _progress(args, "overlay")
+    with heartbeat(progress, 0, 1, f"tracing the statics of {scene.name}, then {len(deltas)} "
+                   "impacts (compiles on first use)"):
+        res = run_overlay(scene, deltas, None)
+    progress(1, 1, "done")
+    progress.close()
     from elastocap.overlay import plot_overlay
 
     res["files"] = [
@@ -322,7 +359,11 @@ def cmd_demo(args) -> int:
     out = folder.path
     say = (lambda *a: None) if args.json else print
     say(f"elastocap {__version__}: the tour of scene {scene.name!r} -> {out}/")
-    bs = trace_branches(scene)
+    from elastocap.progress import heartbeat
+
+    progress = _progress(args, "demo")
+    with heartbeat(progress, 0, 4, "tracing the branches (compiles on first use)"):
+        bs = trace_branches(scene)
     _print_folds(bs) if not args.json else None
     png = folder.savefig(lambda path: plot_branch_set(bs, path), f"{scene.name}-branches.png")
     files = [str(png)]
@@ -332,7 +373,8 @@ def cmd_demo(args) -> int:
     for d in deltas:
         sc = scene.with_overrides({"drop.wetted_length": d})
         check_resources(sc, "impact", args.force)
-        r = run_impact(sc)
+        with heartbeat(progress, 1 + len(runs), 4, f"impact at Δ = {d:g}"):
+            r = run_impact(sc)
         reached = classify_final_state(bs, d, r.simulation.positions[-1])
         runs.append(
             {
@@ -354,14 +396,96 @@ def cmd_demo(args) -> int:
         )
     from elastocap.overlay import plot_overlay
 
+    progress(3, 4, "drawing the overlay")
     ov = folder.savefig(lambda path: plot_overlay(bs, runs, results, path),
                         f"{scene.name}-overlay.png")
     files.append(str(ov))
+    progress(4, 4, "done")
+    progress.close()
     if args.json:
         _print_json({**_fold_report(bs), "impacts": runs, "files": files})
     else:
         for f in files:
             print(f"wrote {f}")
+    return 0
+
+
+def _load_impact(npz: Path):
+    """An impact result and its scene from the ``.npz`` that ``elastocap impact`` writes."""
+    from dynamics import SimulationResult
+    from elastocap.crossings import turning_measures
+    from elastocap.impact import ImpactResult
+    from elastocap.scene import build_scene
+
+    try:
+        ctx = SimulationResult.load_npz_context(npz)
+        sim = SimulationResult.load_npz(npz)
+    except (OSError, ValueError, KeyError) as err:
+        raise UsageError(f"PATH: got {str(npz)!r}; not an impact file ({err})") from None
+    if not isinstance(ctx, dict) or "scene" not in ctx or "outcome" not in ctx:
+        raise UsageError(f"PATH: got {str(npz)!r}; not an impact file written by elastocap "
+                         "impact (no scene recorded)")
+    scene = build_scene(ctx["scene"], ctx.get("scene_name", npz.stem))
+    fields = {k: ctx[k] for k in ImpactResult.__dataclass_fields__ if k in ctx}
+    res = ImpactResult(**fields, simulation=sim, measure_history=turning_measures(sim.positions))
+    return res, scene
+
+
+def cmd_plot(args) -> int:
+    """Redraw a saved result without recomputing it."""
+    path = Path(args.path)
+    if args.frames is not None and not 2 <= args.frames <= 200:
+        raise UsageError(f"--frames: got {args.frames}; expected an integer from 2 to 200")
+    if path.is_dir() and (path / "branches.json").is_file():
+        kind, src = "branches", path / "branches.json"
+    elif path.is_dir() and (path / "sweep.json").is_file():
+        kind, src = "sweep", path / "sweep.json"
+    elif path.is_file() and path.name == "branches.json":
+        kind, src = "branches", path
+    elif path.is_file() and path.suffix == ".npz" and not path.name.startswith("branch_"):
+        kind, src = "impact", path
+    elif path.is_file() and (path.suffix == ".sqlite" or path.name == "sweep.json"):
+        src = path.parent / "sweep.json"
+        if not src.is_file():
+            raise UsageError(f"PATH: got {str(path)!r}; a sweep is redrawn from the sweep.json "
+                             "its run wrote beside the store; none found")
+        kind = "sweep"
+    else:
+        raise UsageError(
+            f"PATH: got {str(path)!r}; expected a branches folder (with branches.json), an "
+            "impact .npz, or a sweep folder / store (with sweep.json)"
+        )
+    folder = OutputFolder(args.out or src.parent, f"plot-{kind}-{src.stem}")
+    if kind == "branches":
+        from elastocap.statics.branches import BranchSet
+        from elastocap.statics.plot import plot_branch_set
+
+        try:
+            bs = BranchSet.load(src)
+        except ValueError as err:
+            raise UsageError(f"PATH: {err}") from None
+        png = folder.savefig(lambda p: plot_branch_set(bs, p), "branches.png")
+        info = {"kind": kind, "scene": bs.scene.name, "branches": len(bs.branches)}
+    elif kind == "impact":
+        from elastocap.frames import frame_strip
+
+        res, scene = _load_impact(src)
+        png = folder.savefig(lambda p: frame_strip(res, scene, p, k=args.frames or 8),
+                             f"{src.stem}-frames.png")
+        info = {"kind": kind, "scene": scene.name, "outcome": res.outcome}
+    else:
+        from elastocap.sweep.plot import plot_phase_diagram
+
+        try:
+            report = json.loads(src.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as err:
+            raise UsageError(f"PATH: got {str(src)!r}; not a readable sweep.json ({err})") from None
+        png = folder.savefig(lambda p: plot_phase_diagram(report, p), "phase-diagram.png")
+        info = {"kind": kind, "scene": report.get("scene")}
+    if args.json:
+        _print_json({**info, "files": [str(png)]})
+    else:
+        print(f"redrew {kind} of {info['scene']}: wrote {png}")
     return 0
 
 
@@ -406,6 +530,8 @@ COMMANDS: dict[str, tuple[Callable, str]] = {
     "figures": (cmd_figures, "regenerate the paper's figures"),
     "demo": (cmd_demo, "the quick-start tour on the default scene"),
     "cache": (cmd_cache, "the cache of compiled time steppers: info, or clear it"),
+    "plot": (cmd_plot, "redraw a saved result (branches folder, impact .npz, sweep) "
+             "without recomputing"),
 }
 
 
@@ -449,6 +575,14 @@ def build_parser() -> argparse.ArgumentParser:
             )
         if name in ("branches", "folds", "demo", "impact", "overlay"):
             force_argument(p)
+        if name in ("branches", "folds", "demo", "impact", "overlay", "figures"):
+            p.add_argument(
+                "--progress",
+                choices=("auto", "none", "text", "tqdm"),
+                default="auto",
+                help="progress on stderr (default: a tqdm bar on a terminal, text lines "
+                "otherwise)",
+            )
         if name == "overlay":
             p.add_argument(
                 "--delta",
@@ -478,10 +612,34 @@ def build_parser() -> argparse.ArgumentParser:
             )
         if name == "cache":
             p.add_argument("action", choices=("info", "clear"), help="what to do")
+        if name == "plot":
+            p.add_argument("path", metavar="PATH", help="a branches folder, an impact .npz, "
+                           "or a sweep folder or store")
+            p.add_argument("--out", metavar="DIR",
+                           help="where to write the figure (default: beside PATH)")
+            p.add_argument("--frames", type=int, metavar="K",
+                           help="frames of an impact's strip (default 8)")
         if name == "figures":
             p.add_argument("--only", metavar="NAME", help="one figure (e.g. supp-fig6)")
             p.add_argument("--fast", action="store_true", help="coarse and quick (for tests)")
     return parser
+
+
+def command_options(parser: argparse.ArgumentParser | None = None) -> dict[str, list[str]]:
+    """Every subcommand of the parser and its options (``--x`` forms, ``-h`` left out): what
+    the tests check the documented commands and the README's command table against."""
+    parser = build_parser() if parser is None else parser
+    out: dict[str, list[str]] = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                out[name] = [
+                    opt
+                    for a in sub._actions
+                    for opt in a.option_strings
+                    if opt.startswith("--") and opt != "--help"
+                ]
+    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:

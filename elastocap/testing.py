@@ -34,9 +34,9 @@ def _fold_list(data, origin: str) -> list[dict]:
         for f in folds
     ):
         raise ValueError(
-            f"{origin}; expected a list of folds (objects each with a numeric 'value', as "
-            "find_folds returns) or a JSON object with a key 'folds' (the output of "
-            "`elastocap folds --json`)"
+            f"{origin}; expected a JSON object with a key 'folds' (the output of "
+            "`elastocap folds --json`) or a list of folds (objects each with a numeric "
+            "'value', as find_folds returns)"
         )
     return folds
 

@@ -76,7 +76,8 @@ def test_unreadable_file(tmp_path, monkeypatch, capsys):
     p.write_text("[rod]\nlength = 1\n")
     p.chmod(0)
     assert main(["show", "s.toml"]) == 2
-    assert "scene: got 's.toml'; cannot read the file (Permission denied)" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "scene: got 's.toml'; cannot read the file (Permission denied)" in err
 
 
 def test_unreadable_file_simulated(tmp_path, monkeypatch, capsys):
@@ -92,7 +93,9 @@ def test_unreadable_file_simulated(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(Path, "read_bytes", denied)
     assert main(["show", "s.toml"]) == 2
     err = capsys.readouterr().err
-    assert err == "elastocap: error: scene: got 's.toml'; cannot read the file (Permission denied)\n"
+    assert err == (
+        "elastocap: error: scene: got 's.toml'; cannot read the file (Permission denied)\n"
+    )
 
 
 def test_force_lifts_a_resource_refusal_but_not_an_impossible_run(capsys):

@@ -87,12 +87,13 @@ def test_impact_cli_json_and_files(tmp_path, capsys):
         assert key in out
     assert out["outcome"] == "open"
     assert out["settings"]["n_edges"] == 50
-    assert (tmp_path / "impact-supp-fig5-frames.png").stat().st_size > 1000
-    meta = json.loads((tmp_path / "impact-supp-fig5.json").read_text())
+    stem = "impact-supp-fig5-delta2.5-x2.3"  # the scene, Delta and x name the files
+    assert (tmp_path / f"{stem}-frames.png").stat().st_size > 1000
+    meta = json.loads((tmp_path / f"{stem}.json").read_text())
     assert meta["scene"]["name"] == "supp-fig5" and "version" in meta["settings"]
     from dynamics import SimulationResult
 
-    ctx = SimulationResult.load_npz_context(tmp_path / "impact-supp-fig5.npz")
+    ctx = SimulationResult.load_npz_context(tmp_path / f"{stem}.npz")
     assert ctx["scene"]["name"] == "supp-fig5" and ctx["settings"]["n_edges"] == 50
-    assert SimulationResult.load_npz(tmp_path / "impact-supp-fig5.npz").steps == out["steps"]
+    assert SimulationResult.load_npz(tmp_path / f"{stem}.npz").steps == out["steps"]
     assert main(["impact", "supp-fig5", "--frames", "1"]) == 2

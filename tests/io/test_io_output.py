@@ -192,3 +192,49 @@ def test_read_only_folder_and_store_refused(tmp_path, monkeypatch, capsys):
     finally:
         ro.chmod(0o755)
     assert list(ro.iterdir()) == []
+
+
+def test_unwritable_store_refused_before_any_run(tmp_path, monkeypatch, capsys):
+    """An existing store that cannot be opened for writing: refused by ``sweep`` before any
+    run, naming --store (simulated for root)."""
+    import elastocap.io
+
+    monkeypatch.chdir(tmp_path)
+    store = tmp_path / "s.sqlite"
+    store.write_bytes(b"")
+
+    def denied(path, mode="r", *a, **k):
+        if "a" in mode:
+            raise PermissionError(13, "Permission denied")
+        return open(path, mode, *a, **k)
+
+    monkeypatch.setattr(elastocap.io, "open", denied, raising=False)
+    assert main(["sweep", "fig3-strip", "--x", "1:2:2", "--delta", "1:2:2", "--store",
+                 "s.sqlite", "--out", "o"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("elastocap: error: --store: got 's.sqlite'; not writable") and (
+        err.count("\n") == 1
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
+
+
+def test_figures_only_one_leaves_the_others(tmp_path, monkeypatch, capsys):
+    """Each figure owns its files: ``figures --only a`` removes a's stale files, keeps b's.
+    (The figure modules are replaced by a fake that writes what it is told.)"""
+    import elastocap.paper_figures as pf
+
+    writes = {"a": ["a.png", "a-old.json"], "b": ["b.png"]}
+
+    def fake(out, only=None, fast=False):
+        for n in writes[only]:
+            (out / n).write_text(only)
+        return {only: [out / n for n in writes[only]]}
+
+    monkeypatch.setattr(pf, "FIGURES", {"a": "a", "b": "b"})
+    monkeypatch.setattr(pf, "run_figures", fake)
+    monkeypatch.chdir(tmp_path)
+    assert main(["figures", "--out", "F", "--progress", "none"]) == 0
+    writes["a"] = ["a.png"]
+    assert main(["figures", "--only", "a", "--out", "F", "--progress", "none"]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in (tmp_path / "F").iterdir()) == [MANIFEST, "a.png", "b.png"]
