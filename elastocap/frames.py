@@ -17,6 +17,19 @@ def _settle_time(times, measures, tol=0.15):
     return times[min(far[-1] + 1, len(times) - 1)]
 
 
+def _scale_bar(scene, width):
+    """A round length near a fifth of the panel width, and its label in the scene's unit."""
+    target = 0.2 * width
+    bar = max(v for v in (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0) if v <= max(target, 0.1))
+    if scene.effects.gravity > 0:
+        unit = r"$\ell_{eg}$"  # units g = mu = B = 1
+    elif scene.drop.line_tension == 1.0 and scene.rod.bending_modulus == 1.0:
+        unit = r"$\ell_{ec}$"  # units B = gamma = 1
+    else:
+        unit = "length unit"
+    return bar, f"{bar:g} {unit}"
+
+
 def _frame_indices(times, k, t_show):
     """Indices of k frames evenly spread over [0, t_show] (first and last included)."""
     targets = np.linspace(times[0], t_show, k)
@@ -83,10 +96,20 @@ def frame_strip(
         lo[1] = min(lo[1], -0.1 * (hi[1] - lo[1] + 1e-9))
     w = hi[0] - lo[0] + 2 * pad
     hgt = hi[1] - lo[1] + 2 * pad
+    ncol = min(len(panels), 4)
+    nrow = -(-len(panels) // ncol)
+    pw = 2.4  # inches a panel
     fig, axes = plt.subplots(
-        1, len(panels), figsize=(1.9 * len(panels), 1.9 * hgt / w + 0.6), dpi=130, squeeze=False
+        nrow,
+        ncol,
+        figsize=(pw * ncol, nrow * (pw * min(hgt / w, 1.2) + 0.3) + 0.3),
+        dpi=130,
+        squeeze=False,
     )
-    for ax, (t, rod, drop, iface) in zip(axes[0], panels, strict=True):
+    bar, unit = _scale_bar(scene, w)
+    for a in axes.flat[len(panels):]:
+        a.axis("off")
+    for k, (ax, (t, rod, drop, iface)) in enumerate(zip(axes.flat, panels, strict=False)):
         ax.fill(drop[:, 0], drop[:, 1], color="tab:blue", alpha=0.35, lw=0)
         ax.plot(iface[:, 0], iface[:, 1], color="tab:blue", lw=0.8)
         ax.plot(rod[:, 0], rod[:, 1], color="k", lw=1.5, solid_capstyle="round")
@@ -97,10 +120,17 @@ def frame_strip(
         ax.set_aspect("equal")
         ax.set_xticks([])
         ax.set_yticks([])
-        ax.set_title(f"t = {t:.2f}", fontsize=7)
+        ax.set_title(f"$t$ = {t:.2f}", fontsize=8, loc="left", pad=2)
+        if k == 0:  # the same scale in every panel: one bar, in the first
+            x0 = hi[0] + pad - 0.05 * w - bar
+            y0 = lo[1] - pad + 0.06 * hgt
+            ax.plot([x0, x0 + bar], [y0, y0], color="k", lw=2.0, solid_capstyle="butt")
+            ax.text(x0 + 0.5 * bar, y0 + 0.03 * hgt, unit, ha="center", va="bottom",
+                    fontsize=7)
     fig.suptitle(
-        title or f"{scene.name}: Δ = {scene.drop.wetted_length:.3g}, outcome {result.outcome}",
-        fontsize=8,
+        title or rf"{scene.name}: $\Delta$ = {scene.drop.wetted_length:.3g}, "
+        f"outcome {result.outcome}",
+        fontsize=9,
     )
     fig.tight_layout()
     if path is not None:

@@ -150,26 +150,33 @@ def run_overlay(scene: Scene, deltas, out_dir=None, bs: BranchSet | None = None)
 
 
 def plot_overlay(bs, runs, results, path):
-    """The statics diagram with each run's M(t) drawn at its Delta, final states marked."""
+    """The statics diagram with each run's M(t) drawn up to its Delta, final states marked.
+
+    Each path runs left to right in time over a short slant that ends at the run's Delta, so
+    the final marker sits exactly at the Delta of the run.
+    """
+    from matplotlib.lines import Line2D
+
     from elastocap.statics.plot import plot_branch_set
 
+    extra = [
+        Line2D([], [], color="k", lw=0.6, alpha=0.6, label="impact: M(t), time left to right"),
+        Line2D([], [], ls="", marker="o", ms=7, mfc="k", mec="k", label="● at rest: encapsulated"),
+        Line2D([], [], ls="", marker="o", ms=7, mfc="w", mec="k", label="○ at rest: open"),
+    ]
     fig = plot_branch_set(
-        bs,
-        None,
-        insets=0,
-        title=f"{bs.scene.name}: impacts on the equilibria (paths: M(t) "
-        "at each Δ, time up the slant; ● encapsulated, ○ open)",
+        bs, None, insets=0, title=f"{bs.scene.name}: impacts on the equilibria", extra_legend=extra
     )
     ax = fig.axes[0]
     span = bs.prange[1] - bs.prange[0]
     for run, res in zip(runs, results, strict=True):
         t = res.simulation.times
         m = res.measure_history
-        slant = 0.04 * span * t / max(t[-1], 1e-12)
+        slant = -0.04 * span * (1.0 - t / max(t[-1], 1e-12))
         enc = run["outcome"] == "encapsulated"
         ax.plot(run["wetted_length"] + slant, m, color="k", lw=0.6, alpha=0.6)
         ax.plot(
-            run["wetted_length"] + slant[-1],
+            run["wetted_length"],
             m[-1],
             "o",
             ms=7,

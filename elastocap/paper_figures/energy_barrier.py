@@ -145,8 +145,8 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     ax1.plot(wk, [kinetic_energy(scene, max(v, 0.0) ** 2) for v in wk], "k--",
              label="drop kinetic energy at impact")
     ax1.set_yscale("log")
-    ax1.set_xlabel("We$^{1/2}$ (spreading law)")
-    ax1.set_ylabel("energy / (μ g ℓ$_{eg}^2$)")
+    ax1.set_xlabel(r"$\mathrm{We}^{1/2}$ (spreading law)")
+    ax1.set_ylabel(r"energy $/\ (\mu g \ell_{eg}^2)$")
     ax1.legend(fontsize=6.5)
     ax1.set_title("(a) barrier open → encapsulated, and the impact's kinetic energy",
                   fontsize=9)
@@ -162,7 +162,7 @@ def main(out_dir, fast: bool = False) -> list[Path]:
         ax2.set_title(f"(b) x = {prof['x']:g}, Δ = {prof['delta']:g}: energy along the "
                       "string", fontsize=9)
     ax2.set_xlabel("normalized arclength along the path (open → encapsulated)")
-    ax2.set_ylabel("E − E(open)")
+    ax2.set_ylabel(r"$E - E_\mathrm{open}$")
     ax2.legend(fontsize=7)
     fig.tight_layout()
     png = out / "energy_barrier.png"

@@ -129,8 +129,8 @@ def _draw_static(ax, rows, sp, w_min):
         ax.plot([lo, hi], [x, x], "-", color="tab:purple", lw=5, alpha=0.35,
                 solid_capstyle="butt", label="static: both states stable" if i == 0 else None)
     for pts, color, marker, lab in (
-            (op, "tab:red", ">", "static: open state ends (n = {n})"),
-            (wr, "tab:green", "<", "static: encapsulated state begins (n = {n})")):
+            (op, "tab:red", ">", "static: open state ends ($n$ = {n})"),
+            (wr, "tab:green", "<", "static: encapsulated state begins ($n$ = {n})")):
         if not pts:
             continue
         ax.plot([p[0] for p in pts], [p[1] for p in pts], "-", color=color, lw=1.0, alpha=0.7)
@@ -144,7 +144,7 @@ def _draw_static(ax, rows, sp, w_min):
             k += 1
     ax.plot([], [], "s", mfc="white", mec="0.3", ms=6,
             label=f"hollow: unsettled (n = {rows[0]['n'][-2] if len(rows[0]['n']) > 1 else '-'}"
-                  f" vs {rows[0]['n'][-1]} differ > {TOL_DELTA} in Δ)")
+                  f" vs {rows[0]['n'][-1]} differ by > {TOL_DELTA} in " + r"$\Delta$)")
 
 
 def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[Path]:
@@ -202,10 +202,10 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
         raise FileNotFoundError(f"fig3d: got {str(path)!r}; expected the JSON written by "
                                 "elastocap figures --only fig3d")
     dyn = json.loads(path.read_text()) if path.is_file() else None
-    what = (f"static window (discrete strip, all contact topologies, n = {ns[0]} and "
-            f"{ns[1]}, folds located) → We$^{{1/2}}$ by the spreading law")
+    what = (f"the static window (discrete strip, every contact topology, $n$ = {ns[0]} and "
+            f"{ns[1]}), mapped to " + r"$\mathrm{We}^{1/2}$ by the spreading law")
     if dyn is not None:
-        title = (f"Fig 3d (model, damped, from {path.name}) with the {what}")
+        title = f"Fig 3d (model, damped, {path.name})\nwith {what}"
         fig = plot_phase_diagram(dyn, None, title=title)
         ax = fig.axes[0]
     else:
@@ -213,8 +213,8 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
         fig = Figure(figsize=(8.0, 4.8), dpi=130)
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
-        ax.set_xlabel("We$^{1/2}$")
-        ax.set_ylabel("x / ℓ_eg")
+        ax.set_xlabel(r"$\mathrm{We}^{1/2}$")
+        ax.set_ylabel(r"$x/\ell_{eg}$")
         ax.set_title(title, fontsize=9)
         ax.grid(alpha=0.25)
     _draw_static(ax, rows, sp, w_min=0.0)

@@ -27,7 +27,7 @@ def main(out_dir, fast: bool = False) -> list[Path]:
             scene,
             png,
             k=8,
-            title=f"Supplementary Fig 5{tag}: Δ = {delta:g}, "
+            title=rf"Supplementary Fig 5{tag}: $\Delta$ = {delta:g}, "
             f"damping {scene.effects.damping:g}: {res.outcome}",
         )
         files.append(png)

@@ -25,8 +25,7 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     plot_branch_set(
         bs,
         png,
-        title="Supplementary Fig 6: A/ℓec² = 1.5, L/ℓec = 4.6 (solid stable, dashed unstable, "
-        "grey inadmissible)",
+        title=r"Supplementary Fig 6: $A/\ell_{ec}^2 = 1.5$, $L/\ell_{ec} = 4.6$",
     )
     js = out / "supp-fig6.json"
     js.write_text(

@@ -17,7 +17,6 @@ _COLORS = [
     "tab:red",
     "tab:green",
     "tab:purple",
-    "tab:orange",
     "tab:brown",
     "tab:pink",
     "tab:olive",
@@ -55,7 +54,49 @@ def _segments(p, y, stable, admissible):
     return runs
 
 
-def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
+def _legend_handles(bs, drawn_colors, extra=()):
+    """One legend entry per drawn branch colour, per line style and per marker kind present."""
+    from matplotlib.lines import Line2D
+
+    hs = [Line2D([], [], color=col, lw=2.0, label=lab) for lab, col in drawn_colors]
+    hs += [
+        Line2D([], [], color="k", lw=2.0, ls="-", label="stable"),
+        Line2D([], [], color="k", lw=1.2, ls="--", label="unstable"),
+        Line2D([], [], color="0.6", lw=1.2, ls="--", label="inadmissible (crossing)"),
+    ]
+    if bs.folds:
+        hs.append(Line2D([], [], ls="", marker="X", color="k", ms=7, label="✕ fold"))
+    if bs.branch_points:
+        hs.append(Line2D([], [], ls="", marker="s", mfc="w", mec="k", ms=6,
+                         label="□ branch point"))
+    if bs.maxwell_points:
+        hs.append(Line2D([], [], ls=":", marker="D", color="tab:orange", ms=5, lw=0.8,
+                         label="◆ equal energy (Maxwell)"))
+    return hs + list(extra)
+
+
+def _fold_labels(ax, folds):
+    """Label each fold with its value to 4 decimals, staggered so that labels never overlap."""
+    texts = []
+    for k, f in enumerate(sorted(folds, key=lambda f: f["value"])):
+        err = f.get("error_estimate")
+        tail = f" ± {err:.0e}" if err is not None and err == err and err > 0 else ""
+        texts.append(
+            ax.annotate(
+                f"fold Δ = {f['value']:.4f}{tail}",
+                (f["value"], f["measure"]),
+                textcoords="offset points",
+                xytext=(-8, -14 - 11 * k),
+                fontsize=7,
+                ha="right",
+                va="top",
+                bbox={"boxstyle": "round,pad=0.15", "fc": "w", "ec": "none", "alpha": 0.8},
+            )
+        )
+    return texts
+
+
+def plot_branch_set(bs, path=None, y="measure", insets=4, title=None, extra_legend=()):
     """Plot a :class:`~elastocap.statics.branches.BranchSet`; save to ``path`` if given.
 
     Parameters
@@ -63,7 +104,11 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
     y : str
         Observable on the vertical axis (default the encapsulation measure).
     insets : int
-        Number of equilibrium shapes drawn as insets (on stable, admissible points).
+        Number of equilibrium shapes drawn below the diagram (on stable, admissible points),
+        each marked on its curve by the letter of its panel.
+    title : str, optional
+    extra_legend : sequence of matplotlib artists
+        More legend entries (for what a caller draws on top).
 
     Returns
     -------
@@ -74,7 +119,15 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(8.0, 5.6), dpi=130)
+    if insets > 0:
+        fig = plt.figure(figsize=(8.0, 7.4), dpi=130)
+        gs = fig.add_gridspec(2, max(insets, 1), height_ratios=[3.2, 1.0], hspace=0.25)
+        ax = fig.add_subplot(gs[0, :])
+        inset_axes = [fig.add_subplot(gs[1, k]) for k in range(insets)]
+    else:
+        fig, ax = plt.subplots(figsize=(8.0, 5.6), dpi=130)
+        inset_axes = []
+    drawn = []
     for b, (br, lab) in enumerate(zip(bs.branches, bs.labels, strict=True)):
         if not len(br):
             continue
@@ -82,7 +135,6 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
         yv = br.observables[y]
         stable = br.stability == 0
         adm = br.observables.get("admissible", np.ones(len(br))) > 0.5
-        first = True
         for i, j, st, ad in _segments(br.p, yv, stable, adm):
             ax.plot(
                 br.p[i : j + 1],
@@ -90,19 +142,12 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
                 ls="-" if st else "--",
                 color=col if ad else "0.6",
                 lw=2.0 if st else 1.2,
-                label=lab if first else None,
             )
-            first = False
+        if adm.any():
+            drawn.append((lab, col))
     for f in bs.folds:
         ax.plot(f["value"], f["measure"], "X", color="k", ms=7, zorder=5)
-        ax.annotate(
-            f"fold Δ={f['value']:.8f}",
-            (f["value"], f["measure"]),
-            textcoords="offset points",
-            xytext=(-10, -16),
-            fontsize=7,
-            ha="right",
-        )
+    _fold_labels(ax, bs.folds)
     for bp in bs.branch_points:
         ax.plot(bp["value"], bp["measure"], "s", mfc="w", mec="k", ms=6, zorder=5)
     for m in bs.maxwell_points:
@@ -110,14 +155,13 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
             ax.plot(m["value"], meas, "D", color="tab:orange", ms=5, zorder=5)
         ax.axvline(m["value"], color="tab:orange", lw=0.6, ls=":")
     ax.set_xlabel(_axis_label(bs.parameter))
-    ax.set_ylabel("encapsulation measure  (θ(L) − θ(0)) / π" if y == "measure" else y)
-    ax.set_title(
-        title or f"{bs.scene.name}: equilibria (solid stable, dashed unstable, grey inadmissible)",
-        fontsize=9,
+    ax.set_ylabel(
+        r"encapsulation measure  $(\theta(L) - \theta(0))/\pi$" if y == "measure" else y
     )
+    ax.set_title(title or f"{bs.scene.name}: equilibria", fontsize=9)
     ax.grid(alpha=0.25)
-    ax.legend(fontsize=7, loc="upper left")
-    _add_insets(fig, ax, bs, y, insets)
+    ax.legend(handles=_legend_handles(bs, drawn, extra_legend), fontsize=7, loc="upper left")
+    _add_insets(ax, inset_axes, bs, y)
     if path is not None:
         fig.savefig(path, bbox_inches="tight")
     return fig
@@ -125,18 +169,33 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None):
 
 def _axis_label(parameter):
     return {
-        "drop.wetted_length": "wetted length Δ",
-        "drop.area": "drop area A",
-        "drop.line_tension": "line tension γ",
-        "rod.bending_modulus": "bending modulus B",
-        "rod.length": "rod length L",
-        "drop.center": "drop centre",
-        "drop.distance_from_end": "distance from the end x",
+        "drop.wetted_length": r"wetted length $\Delta$",
+        "drop.area": r"drop area $A$",
+        "drop.line_tension": r"line tension $\gamma$",
+        "rod.bending_modulus": r"bending modulus $B$",
+        "rod.length": r"rod length $L$",
+        "drop.center": r"drop centre $S_c$",
+        "drop.distance_from_end": r"distance from the end $x$",
     }.get(parameter, parameter)
 
 
-def _add_insets(fig, ax, bs, y, n):
-    """Shapes on stable admissible points spread over the branches."""
+def _symbol(parameter):
+    """The parameter's symbol in plain text, for panel titles such as "Δ = 4.60"."""
+    return {
+        "drop.wetted_length": "Δ",
+        "drop.area": "A",
+        "drop.line_tension": "γ",
+        "rod.bending_modulus": "B",
+        "rod.length": "L",
+        "drop.center": "S_c",
+        "drop.distance_from_end": "x",
+    }.get(parameter, parameter)
+
+
+def _add_insets(ax, inset_axes, bs, y):
+    """Shapes on stable admissible points spread over the branches, in the panels below the
+    diagram; each point is marked on its curve by its panel's letter (no leader lines)."""
+    n = len(inset_axes)
     if n <= 0:
         return
     cands = []
@@ -149,6 +208,8 @@ def _add_insets(fig, ax, bs, y, n):
             for i in idx[np.linspace(0, idx.size - 1, min(3, idx.size)).astype(int)]:
                 cands.append((b, int(i)))
     if not cands:
+        for a in inset_axes:
+            a.axis("off")
         return
     # pick n spread in (p, y)
     pts = np.array([[bs.branches[b].p[i], bs.branches[b].observables[y][i]] for b, i in cands])
@@ -157,20 +218,18 @@ def _add_insets(fig, ax, bs, y, n):
     while len(chosen) < min(n, len(cands)):
         d = np.min([np.hypot(*((pts - pts[c]) / span).T) for c in chosen], axis=0)
         chosen.append(int(np.argmax(d)))
+    chosen.sort(key=lambda c: tuple(pts[c]))  # panels left to right by parameter
     problem = bs.problem
-    for k, c in enumerate(chosen):
-        b, i = cands[c]
+    name = _symbol(bs.parameter)
+    for k, ax_in in enumerate(inset_axes):
+        if k >= len(chosen):
+            ax_in.axis("off")
+            continue
+        b, i = cands[chosen[k]]
         br = bs.branches[b]
-        x0, y0 = pts[c]
-        ax_in = ax.inset_axes([0.02 + 0.245 * k, 0.62 if k % 2 else 0.05, 0.2, 0.3])
+        x0, y0 = pts[chosen[k]]
+        letter = "abcdefghij"[k]
         draw_shape(ax_in, problem, br.u[i], float(br.p[i]), color=_COLORS[b % len(_COLORS)])
-        ax_in.set_title(f"{br.p[i]:.2f}", fontsize=6)
-        ax.annotate(
-            "",
-            xy=(x0, y0),
-            xycoords="data",
-            xytext=(0.5, 0.5),
-            textcoords=ax_in.transAxes,
-            arrowprops={"arrowstyle": "-", "color": "0.5", "lw": 0.5},
-        )
-
+        ax_in.set_title(f"({letter})  {name} = {br.p[i]:.2f}", fontsize=7)
+        ax.plot(x0, y0, "o", ms=11, mfc="w", mec=_COLORS[b % len(_COLORS)], zorder=6)
+        ax.text(x0, y0, letter, ha="center", va="center", fontsize=7, zorder=7)

@@ -39,8 +39,7 @@ def plot_contact_branch_set(bs, path=None, insets=3):
             y = pts[key]
             for mask, ls, c in ((stable & ok, "-", col), (~stable & ok, "--", col),
                                 (~ok, ":", "0.6")):
-                a.plot(d, np.where(mask, y, np.nan), ls, color=c, lw=1.2,
-                       label=bs.labels[b] if (a is ax and ls == "-") else None)
+                a.plot(d, np.where(mask, y, np.nan), ls, color=c, lw=1.2)
     for f in bs.folds:
         mk = "kx" if f["kind"] == "smooth" else "ko"
         ax.plot(f["value"], f["energy"] - _flat(bs, f["value"]), mk, mfc="none", ms=5)
@@ -51,16 +50,32 @@ def plot_contact_branch_set(bs, path=None, insets=3):
         if v is not None:
             for a in (ax, am):
                 a.axvline(v, color="k", lw=0.7, ls=ls)
-    ax.set_xlabel("Delta")
-    ax.set_ylabel("E - E(flat strip)")
-    fig.suptitle(f"{bs.scene.name}, x = {bs.scene.distance_from_end:g}, n = {bs.n} edges: "
-                 "solid stable, dashed unstable, dotted inadmissible (strip crosses itself);"
-                 " x smooth fold, o contact fold", fontsize=9)
-    ax.legend(fontsize=6, loc="best")
-    am.set_xlabel("Delta")
-    am.set_ylabel("theta(L) / pi")
-    am.set_title(f"stable open up to {_fmt(w, 'open_max')}, stable encapsulated from "
-                 f"{_fmt(w, 'encapsulated_min')}", fontsize=8)
+    from matplotlib.lines import Line2D
+
+    ax.set_xlabel(r"wetted length $\Delta$")
+    ax.set_ylabel(r"$E - E_\mathrm{flat}$")
+    fig.suptitle(f"{bs.scene.name}, " + r"$x$" + f" = {bs.scene.distance_from_end:g}, "
+                 + r"$n$" + f" = {bs.n} edges", fontsize=9)
+    handles = [Line2D([], [], color=f"C{b % 10}", label=bs.labels[b].replace("Delta", "Δ"))
+               for b, pts in enumerate(bs.points) if pts["delta"].size]
+    handles += [Line2D([], [], color="k", ls="-", label="stable"),
+                Line2D([], [], color="k", ls="--", label="unstable"),
+                Line2D([], [], color="0.6", ls=":", label="inadmissible (crossing)")]
+    kinds = {f["kind"] for f in bs.folds}
+    if "smooth" in kinds:
+        handles.append(Line2D([], [], ls="", marker="x", color="k", label="✕ smooth fold"))
+    if kinds - {"smooth"}:
+        handles.append(Line2D([], [], ls="", marker="o", mfc="none", color="k",
+                              label="○ contact fold"))
+    for key, ls, lab in (("open_max", "-.", "stable open state ends"),
+                         ("encapsulated_min", ":", "stable encapsulated state begins")):
+        if (w.get(key) or {}).get("value") is not None:
+            handles.append(Line2D([], [], color="k", lw=0.7, ls=ls, label=lab))
+    ax.legend(handles=handles, fontsize=6, loc="best")
+    am.set_xlabel(r"wetted length $\Delta$")
+    am.set_ylabel(r"$\theta(L)/\pi$")
+    am.set_title(f"stable open up to Δ = {_fmt(w, 'open_max')}, stable encapsulated from "
+                 f"Δ = {_fmt(w, 'encapsulated_min')}", fontsize=8)
     strip = discrete_strip_for(bs.scene, bs.n)
     for b, br in enumerate(bs.branches):
         U = [u for s in br.segments for u in s.u]
@@ -73,7 +88,7 @@ def plot_contact_branch_set(bs, path=None, insets=3):
     L, x = bs.scene.rod.length, bs.scene.distance_from_end
     axs.set_xlim(L - x - 4.0, L + 0.5)
     axs.set_aspect("equal")
-    axs.set_title("shapes on the ground (impact centre at L - x)", fontsize=8)
+    axs.set_title(r"shapes on the ground (impact centre at $L - x$)", fontsize=8)
     fig.tight_layout()
     if path is not None:
         fig.savefig(Path(path), dpi=110)

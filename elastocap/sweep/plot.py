@@ -152,9 +152,8 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
                 label=f"experiment: {outcome}",
                 **style,
             )
-    unit = "ℓ_eg" if rep.get("x_unit") == "l_eg" else "scene units"
-    ax.set_ylabel(f"x / {unit}" if unit == "ℓ_eg" else f"x ({unit})")
-    ax.set_xlabel("We$^{1/2}$" if use_we else "Δ (scene units)")
+    ax.set_ylabel(r"$x/\ell_{eg}$" if rep.get("x_unit") == "l_eg" else r"$x$ (scene units)")
+    ax.set_xlabel(r"$\mathrm{We}^{1/2}$" if use_we else r"$\Delta$ (scene units)")
     ax.set_title(
         title or f"{rep['scene']}: phase diagram ({len(runs)} runs, elastocap {rep['version']})",
         fontsize=9,
