@@ -99,6 +99,7 @@ from ._branch import (
     STOPPED,
     Branch,
     SpecialPoint,
+    __version__,
 )
 from ._core import continue_branch, locate_fold, switch_branch
 from ._fold import FoldProblem, continue_fold, fold_crossings
@@ -122,6 +123,7 @@ from ._search import (
 from ._settings import ContinuationSettings
 
 __all__ = [
+    "__version__",
     "Problem", "FunctionProblem", "BandedJacobian", "ContinuationSettings",
     "continue_branch", "locate_fold", "switch_branch", "continue_fold", "FoldProblem",
     "fold_crossings", "BranchSearch", "SearchSettings", "SearchResult", "search_branches",

@@ -30,13 +30,14 @@ STATUS_NAMES = {
 }
 
 
-def package_version() -> str:
-    try:
-        from importlib.metadata import version
+#: The library's own version (recorded in every branch's metadata). The library knows
+#: nothing of the application that ships it; the application records its own version.
+__version__ = "1.1"
 
-        return version("elastocap")
-    except Exception:  # not installed (vendored copy): still record something
-        return "unknown"
+
+def package_version() -> str:
+    """The version of this library, as recorded in branch metadata."""
+    return __version__
 
 
 @dataclass
@@ -261,7 +262,11 @@ class Branch:
         -------
         ax
         """
-        import matplotlib.pyplot as plt
+        try:
+            import matplotlib.pyplot as plt
+        except ImportError:
+            raise ImportError("Branch.plot needs matplotlib (an optional dependency of "
+                              "continuation): pip install matplotlib") from None
 
         if ax is None:
             _, ax = plt.subplots()

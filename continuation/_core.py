@@ -753,7 +753,7 @@ def _assemble(core, runs, problem, settings, extra_meta, parameter="p") -> Branc
         "problem": getattr(problem, "name", type(problem).__name__),
         "n_unknowns": n,
         "settings": settings.to_dict(),
-        "package": "continuation (elastocap)",
+        "package": "continuation",
         "version": package_version(),
         "end_status": [B.STATUS_NAMES.get(c, c) for c in ends],
         "nfev": core.ev.nfev,

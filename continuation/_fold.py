@@ -2,7 +2,7 @@
 
 The second parameter ``q`` enters through a *problem family*: a callable
 ``family(q) -> Problem`` whose problems are continued in ``p``. This needs no
-extra methods on the problem (elastocap builds its problem with ``p`` and
+extra methods on the problem (an application builds its problem with ``p`` and
 ``q`` chosen by name), and ``dF/dq`` is taken by central differences in
 ``q``; that only affects Newton's convergence rate, not the computed fold
 curve, which solves ``F = 0, g = 0`` to the Newton tolerance at each ``q``.

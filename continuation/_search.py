@@ -15,13 +15,14 @@ ends, ``SearchSettings.samples`` interior values, and any the caller adds).
    Newton-corrected and continued both ways.
 2. **Recording.** Every computed branch is cut at every sample value it crosses and the
    crossing is Newton-corrected there: the *known solutions* at each ``p_k``.
-3. **Deflated seeds.** At each sample ``p_k``, Newton is started from every seed the problem
-   supplies (``problem.seeds(p_k)``, first round) and from every known solution at the
-   neighbouring samples ``p_{k-1}``, ``p_{k+1}`` not tried there before (deflated continuation, Farrell, Beentjes & Birkisson
-   2016), each *deflated* against the solutions known at ``p_k`` (Farrell, Birkisson &
-   Funke 2015: the residual is multiplied by ``prod_i (|u - u_i|^-power + shift)``, so
-   Newton cannot converge to a known solution). A new solution starts a new branch,
-   continued both ways and recorded (step 2) before the next seed is tried.
+3. **Deflated seeds.** At each sample ``p_k``, Newton is started from every seed the
+   problem supplies (``problem.seeds(p_k)``, first round) and from every known solution
+   at the neighbouring samples ``p_{k-1}``, ``p_{k+1}`` not tried there before (deflated
+   continuation, Farrell, Beentjes & Birkisson 2016), each *deflated* against the
+   solutions known at ``p_k`` (Farrell, Birkisson & Funke 2015: the residual is
+   multiplied by ``prod_i (|u - u_i|^-power + shift)``, so Newton cannot converge to a
+   known solution). A new solution starts a new branch, continued both ways and
+   recorded (step 2) before the next seed is tried.
 4. **Branch switching** at every located simple branch point of every branch, and
    deflated seeds next to every special point that could not be located and every branch
    end inside the range: at ``p`` a little to either side, Newton from the point's state

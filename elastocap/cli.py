@@ -135,9 +135,14 @@ def _print_folds(bs) -> None:
         f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (N={bs.metadata['N']}, "
         f"{bs.metadata['wall_time_s']:.2f} s)"
     )
+    note = bs.metadata.get("range_note")
+    if note:
+        print(f"  note: {note}")
     for f in bs.folds:
+        err = f.get("error_estimate")
+        err = "(not estimated)" if err is None else f"± {err:.1e}"
         print(
-            f"  fold          {f['value']:.12f}  ± {f['error_estimate']:.1e}  measure "
+            f"  fold          {f['value']:.12f}  {err}  measure "
             f"{f['measure']:+.6f}  stability {f['stability_change']}"
         )
     for b in bs.branch_points:
@@ -150,6 +155,24 @@ def _print_folds(bs) -> None:
             f"  equal energy  {m['value']:.12f}            measures "
             + ", ".join(f"{v:+.6f}" for v in m["measures"])
         )
+    for e in getattr(bs, "endpoints", []):
+        if e.get("kind") == "admissible_boundary":
+            print(f"  branch end    {e['value']:.12f}            on the admissible boundary: "
+                  f"{e['reason']}")
+    for u in getattr(bs, "unlocated", []):
+        print(f"  NOT LOCATED   {u['kind']} near {u['value']:.6g}: {u['reason']}; "
+              f"{u['what_to_try']}")
+
+
+def _trace_or_fail(args, scene=None, progress=None, step=(0, 0)):
+    """``_trace``; a statics failure (no branch found) is a diagnosed exit 1, not bad input."""
+    from elastocap.statics.branches import StaticsError
+
+    try:
+        return _trace(args, scene, progress, step)
+    except StaticsError as err:
+        print(f"elastocap: statics failed: {err}", file=sys.stderr)
+        return None
 
 
 def cmd_branches(args) -> int:
@@ -159,7 +182,9 @@ def cmd_branches(args) -> int:
     scene = _load(args)
     folder = _out_folder(args, f"branches-{scene.name}", "branches")
     progress = _progress(args, "branches")
-    bs = _trace(args, scene, progress, (0, 2))
+    bs = _trace_or_fail(args, scene, progress, (0, 2))
+    if bs is None:
+        return 1
     progress(1, 2, f"{len(bs.branches)} branches traced; writing the files and the figure")
     if isinstance(bs, BranchSet):
         paths = bs.save(folder)
@@ -193,11 +218,13 @@ def cmd_folds(args) -> int:
     if not (rtol > 0 and math.isfinite(rtol)):
         raise UsageError(f"--rtol: got {rtol!r}; expected a finite number > 0")
     progress = _progress(args, "folds")
-    bs = _trace(args, progress=progress, step=(0, 1))
+    bs = _trace_or_fail(args, progress=progress, step=(0, 1))
+    if bs is None:
+        return 1
     progress(1, 1, f"folds located: {len(bs.folds)}")
     progress.close()
     if expected is not None:
-        ok, table = compare_folds(bs.folds, expected, rtol)
+        ok, table = compare_folds(bs.folds, expected, rtol, getattr(bs, "unlocated", ()))
         if args.json:
             _print_json({"match": ok, "rtol": rtol, "expected": expected, **_fold_report(bs)})
         else:

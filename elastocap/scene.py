@@ -113,6 +113,19 @@ NUMERICS_KEYS: dict[str, tuple[str, Any]] = {
     "rest_time": ("pos", 1.0),
     "integrator": ("str:rattle|implicit", "rattle"),
 }
+#: Allowed ranges of the numerics keys the statics uses: (lo, hi, why). A value outside is
+#: refused like any bad scene value (key, value and range named). cheb_points 0 means the
+#: accuracy preset (16/24/40); above 128 the dense spectral operators cost seconds per
+#: Newton step and round-off in the differentiation matrices (~N^2 eps) exceeds the
+#: default tolerance. newton_tol below 1e-12 is under the round-off floor of the residual
+#: at the default resolution (measured: at 1e-13 a branch point moves by 1e-6, at 1e-15 no
+#: branch converges); above 1e-6 no number is worth reporting.
+NUMERICS_RANGES: dict[str, tuple[float, float, str]] = {
+    "cheb_points": (4, 128, "0 (the accuracy preset) or 4 <= cheb_points <= 128"),
+    "newton_tol": (1e-12, 1e-6, "1e-12 <= newton_tol <= 1e-6 (below 1e-12 is under the "
+                   "residual's round-off floor)"),
+    "max_steps": (10, 100_000, "10 <= max_steps <= 100000"),
+}
 EXPERIMENT_KEYS: dict[str, tuple[str, Any]] = {
     "drop_radius": ("pos", REQUIRED),
     "areal_mass": ("pos", REQUIRED),
@@ -564,7 +577,14 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
         s1, s2 = n1, n2
     drop = Drop(dsec["area"], delta, center, dsec["line_tension"], events)
     effects = Effects(**_read_section(data_effects, "effects", EFFECTS_KEYS))
-    numerics = Numerics(**_read_section(data.get("numerics", {}), "numerics", NUMERICS_KEYS))
+    nsec = _read_section(data.get("numerics", {}), "numerics", NUMERICS_KEYS)
+    for k, (lo, hi, allowed) in NUMERICS_RANGES.items():
+        v = nsec[k]
+        if k == "cheb_points" and v == 0:
+            continue
+        if not lo <= v <= hi:
+            raise SceneError(f"numerics.{k}", v, f"expected {allowed}")
+    numerics = Numerics(**nsec)
     if raw_spr is not None:
         spreading = Spreading(**_read_section(raw_spr, "spreading", SPREADING_KEYS))
     return Scene(

@@ -1,9 +1,10 @@
 """Helpers for users' own CI: compare fold points against a reference file.
 
 A reference file is the JSON that ``elastocap folds SCENE --json`` prints (a key ``folds``,
-a list of objects with at least ``value``). Two fold lists match when they have the same
-number of folds and, sorted by value, each pair agrees within ``rtol`` (relative, on the
-parameter value).
+a list of objects with at least ``value``). Two fold lists match when every expected fold
+has a found fold within ``rtol`` (relative, on the parameter value) and no fold is found
+that was not expected. An expected fold that the new run could not locate fails with the
+reason the run gives.
 """
 
 from __future__ import annotations
@@ -61,22 +62,45 @@ def load_folds(path, option: str = "--check") -> list[dict]:
     return _fold_list(data, origin)
 
 
-def compare_folds(found, expected, rtol=DEFAULT_RTOL) -> tuple[bool, str]:
-    """Compare two fold lists. Returns (match, table) where table is printable text."""
+def compare_folds(found, expected, rtol=DEFAULT_RTOL, unlocated=()) -> tuple[bool, str]:
+    """Compare two fold lists. Returns (match, table) where table is printable text.
+
+    Each expected fold is paired with the nearest found one (each found fold used once);
+    it matches when their relative difference is at most ``rtol``. An expected fold with no
+    match is reported ``UNLOCATED`` (with the reason) when the new run has an unlocated
+    point near it (``unlocated``: the ``unlocated`` list of a branch set), else ``MISSING``
+    or ``MISMATCH``; a found fold nobody expected is ``UNEXPECTED``.
+    """
     f = sorted(float(x["value"]) for x in found)
     e = sorted(float(x["value"]) for x in expected)
-    n = max(len(f), len(e))
+    unl = [u for u in unlocated if u.get("kind", "fold") in ("fold", "branch_point")]
+    free = list(range(len(f)))
     lines = [f"{'#':>3}  {'expected':>20}  {'found':>20}  {'rel. diff':>10}  status"]
-    ok = len(f) == len(e)
-    for k in range(n):
-        ev = e[k] if k < len(e) else math.nan
-        fv = f[k] if k < len(f) else math.nan
-        rel = abs(fv - ev) / max(abs(ev), 1e-300) if k < len(e) and k < len(f) else math.nan
-        good = math.isfinite(rel) and rel <= rtol
-        ok &= good
-        lines.append(
-            f"{k:>3}  {ev:>20.12g}  {fv:>20.12g}  {rel:>10.2e}  {'ok' if good else 'MISMATCH'}"
-        )
+    ok = True
+    notes = []
+    for k, ev in enumerate(e):
+        j = min(free, key=lambda i: abs(f[i] - ev), default=None)
+        rel = abs(f[j] - ev) / max(abs(ev), 1e-300) if j is not None else math.nan
+        if j is not None and rel <= rtol:
+            free.remove(j)
+            lines.append(f"{k:>3}  {ev:>20.12g}  {f[j]:>20.12g}  {rel:>10.2e}  ok")
+            continue
+        ok = False
+        near = [u for u in unl if abs(float(u["value"]) - ev) <= 1e-3 * max(1.0, abs(ev))]
+        if near:
+            u = near[0]
+            lines.append(f"{k:>3}  {ev:>20.12g}  {'(not located)':>20}  {'':>10}  UNLOCATED")
+            notes.append(f"expected fold {ev:.12g} is not located in this run: "
+                         f"{u.get('reason', '')}; {u.get('what_to_try', '')}")
+        elif j is not None and rel <= 1e-3:
+            free.remove(j)
+            lines.append(f"{k:>3}  {ev:>20.12g}  {f[j]:>20.12g}  {rel:>10.2e}  MISMATCH")
+        else:
+            lines.append(f"{k:>3}  {ev:>20.12g}  {'-':>20}  {'':>10}  MISSING")
+    for i in free:
+        ok = False
+        lines.append(f"{'+':>3}  {'-':>20}  {f[i]:>20.12g}  {'':>10}  UNEXPECTED")
+    lines += notes
     lines.append(
         f"{'all folds match' if ok else 'folds differ'} (rtol={rtol:g}; expected "
         f"{len(e)}, found {len(f)})"
@@ -94,7 +118,9 @@ def assert_folds(found, expected, rtol=DEFAULT_RTOL) -> None:
     expected : list of dict, a dict with a key ``folds``, a BranchSet, or a path to a JSON
         file holding either (see :func:`load_folds`)
     """
+    unlocated = ()
     if hasattr(found, "folds"):
+        unlocated = getattr(found, "unlocated", ())
         found = found.folds
     if hasattr(expected, "folds"):
         expected = expected.folds
@@ -102,6 +128,6 @@ def assert_folds(found, expected, rtol=DEFAULT_RTOL) -> None:
         expected = load_folds(expected, "expected")
     found = _fold_list(found, "found")
     expected = _fold_list(expected, "expected")
-    ok, table = compare_folds(found, expected, rtol)
+    ok, table = compare_folds(found, expected, rtol, unlocated)
     if not ok:
         raise FoldMismatch("\n" + table)

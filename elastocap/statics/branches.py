@@ -65,6 +65,14 @@ SEARCH_SAMPLES = 3
 FOLD_TRANSVERSALITY = 1e-6
 
 
+#: Dimensionless ranges the free-rod statics resolves at its resolutions (N <= 128):
+#: rod length over l_ec = sqrt(B/gamma) (boundary layers of width l_ec on a wet part of up
+#: to L need N ~ L/l_ec points; at L = 1000 l_ec the default N = 24 gives stability
+#: indices of 10 and more: unresolved) and drop area over l_ec^2 (checked: 1e-4 and 1e4
+#: run cleanly; 1e300 overflows the cap geometry).
+RESOLVED = {"rod.length": (1e-2, 20.0), "drop.area": (1e-3, 1e3)}
+
+
 class StaticsError(RuntimeError):
     """A numerical failure of the statics (no branch found, ...); the message diagnoses it."""
 
@@ -79,11 +87,26 @@ def _check_statics_scene(scene: Scene) -> None:
         )
 
 
+def _check_resolved(scene: Scene) -> None:
+    lec = math.sqrt(scene.rod.bending_modulus) / math.sqrt(scene.drop.line_tension)
+    for key, value, scale, unit in (("rod.length", scene.rod.length, lec, "l_ec"),
+                                    ("drop.area", scene.drop.area, lec * lec, "l_ec^2")):
+        lo, hi = RESOLVED[key]
+        ratio = value / scale if scale > 0.0 else math.inf
+        if not (math.isfinite(ratio) and lo <= ratio <= hi):
+            raise SceneError(
+                key, value,
+                f"the free-rod statics resolves {lo:g} <= {key} / {unit} <= {hi:g} (l_ec = "
+                f"sqrt(B/gamma) = {lec:.6g}; here the ratio is {ratio:.3g}): rescale the "
+                "scene or change B or gamma")
+
+
 def problem_for(
     scene: Scene, parameter: str = "drop.wetted_length", N: int | None = None, nodes="lgl"
 ) -> WetElasticaProblem:
     """The discretized equilibrium problem of a scene, continued in ``parameter``."""
     _check_statics_scene(scene)
+    _check_resolved(scene)
     if parameter not in PARAMETERS:
         raise SceneError("--param", parameter, f"expected one of {', '.join(PARAMETERS)}")
     if N is None:
@@ -485,7 +508,7 @@ def trace_branches(
             "numerics.cheb_points, or a narrower --range.")
     result = BranchSet(scene, parameter, (lo, hi), problem)
     result.branches = res.branches
-    for k, (br, o) in enumerate(zip(res.branches, res.origins, strict=True)):
+    for k, o in enumerate(res.origins):
         result.labels.append("primary" if o["how"] == "start" and o.get("start") == 0
                              and k == 0 else f"branch {k}")
     _collect_special_points(result, error_estimates, (lo_name, hi_name))
@@ -658,7 +681,7 @@ def _collect_special_points(result: BranchSet, error_estimates: bool, end_names)
                 elif sp.p == lo and end_names[0]:
                     kind, reason = "admissible_boundary", end_names[0]
                 elif sp.p in (lo, hi):
-                    kind, reason = "range_end", "the end of the requested range"
+                    kind, reason = "range_end", "the end of the search range"
                 else:
                     kind, reason = "endpoint", br.message
                 result.endpoints.append(

@@ -1,0 +1,129 @@
+"""The statics search on scenes next to supp-fig5: admissible region, honest special
+points, settings with limits, and agreement with the (Delta, A) fold curve."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from family import curve_folds
+
+from elastocap.cli import main
+from elastocap.scene import SceneError, load_scene
+from elastocap.statics.branches import StaticsError, admissible_range, trace_branches
+from elastocap.testing import FoldMismatch, assert_folds, compare_folds
+
+
+def _walk_numbers(obj, path="$"):
+    """Every leaf that is a string spelling a number is a defect (JSON numbers are numbers
+    or null)."""
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            yield from _walk_numbers(v, f"{path}.{k}")
+    elif isinstance(obj, list):
+        for i, v in enumerate(obj):
+            yield from _walk_numbers(v, f"{path}[{i}]")
+    elif isinstance(obj, str) and obj.strip().lower() in ("nan", "inf", "-inf", "+inf"):
+        yield path
+
+
+def test_small_drop_finds_the_stable_encapsulated_branch_and_its_fold():
+    bs = trace_branches(load_scene("supp-fig5", {"drop.area": 1.0}))
+    (fold,) = bs.folds
+    # on the (Delta, A) fold curve at A = 1.0 (independent two-parameter continuation)
+    (ref,) = curve_folds(1.0, 0.092, 4.6)
+    assert fold["value"] == pytest.approx(ref, abs=1e-8)
+    assert fold["error_estimate"] < 1e-11 and fold["stability_change"] in ("0->1", "1->0")
+    assert bs.unlocated == []
+    # both pitchforks located, none reported as a fold
+    assert sorted(b["value"] for b in bs.branch_points) == pytest.approx(
+        [3.5388778973, 4.2463061487], abs=1e-8)
+    stable_wrapped = [br for br in bs.branches
+                      if np.any((br.stability == 0) & (br.observables["measure"] > 1.0))]
+    assert stable_wrapped
+
+
+def test_off_centre_drop_ends_on_the_admissible_boundary_without_a_fold():
+    sc = load_scene("supp-fig5", {"drop.distance_from_end": 1.6})
+    assert admissible_range(sc, "drop.wetted_length")[:2] == (0.0, pytest.approx(3.2))
+    bs = trace_branches(sc)
+    assert bs.folds == [] and bs.unlocated == []
+    assert bs.prange[1] == pytest.approx(3.2) and "clipped" in bs.metadata["range_note"]
+    (end,) = [e for e in bs.endpoints if e["kind"] == "admissible_boundary"]
+    assert end["value"] == pytest.approx(3.2) and "S2 = L" in end["reason"]
+    # the fold of the centred drop (3.4698) lies outside: it is not a fold of this scene
+    assert all(br.p.max() <= 3.2 + 1e-12 for br in bs.branches)
+
+
+def test_other_rod_lists_one_fold_and_no_spurious_one():
+    bs = trace_branches(load_scene("supp-fig5", {"rod.length": 5.0, "drop.area": 1.2}))
+    (fold,) = bs.folds
+    (ref,) = curve_folds(1.2, 0.1, 5.0)
+    assert fold["value"] == pytest.approx(ref, abs=1e-8)
+    assert math.isfinite(fold["error_estimate"]) and fold["error_estimate"] < 1e-11
+    assert bs.unlocated == []
+    assert not any(abs(f["value"] - 3.8915) < 1e-3 for f in bs.folds)
+
+
+@pytest.mark.parametrize(("key", "value", "msg"), [
+    ("numerics.newton_tol", 1e-15, "1e-12 <= newton_tol <= 1e-6"),
+    ("numerics.cheb_points", 100000, "4 <= cheb_points <= 128"),
+    ("numerics.cheb_points", 2, "4 <= cheb_points <= 128"),
+    ("numerics.max_steps", 3, "10 <= max_steps <= 100000"),
+    ("rod.length", 1e300, "rod.length / l_ec <= 20"),
+    ("drop.area", 1e300, "drop.area / l_ec^2 <= 1000"),
+    ("drop.area", 1e-300, "0.001 <= drop.area / l_ec^2"),
+])
+def test_out_of_range_settings_exit_2_and_write_nothing(tmp_path, capsys, key, value, msg):
+    out = tmp_path / "o"
+    assert main(["branches", "supp-fig5", "--set", f"{key}={value}", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"elastocap: error: {key}: got ") and msg in err, err
+    assert not out.exists()
+
+
+def test_a_search_without_branches_is_a_diagnosed_failure(monkeypatch, capsys):
+    import continuation
+
+    monkeypatch.setattr(continuation.BranchSearch, "_starts", lambda self: iter(()))
+    monkeypatch.setattr(continuation.BranchSearch, "_seed_round", lambda self, first: iter(()))
+    with pytest.raises(StaticsError, match="no equilibrium branch .* Try a looser"):
+        trace_branches(load_scene("supp-fig5"))
+    assert main(["folds", "supp-fig5"]) == 1
+    assert "statics failed: no equilibrium branch" in capsys.readouterr().err
+
+
+def test_json_has_numbers_or_null_and_check_reports_unlocated(tmp_path, capsys):
+    assert main(["folds", "supp-fig5", "--set", "drop.area=1.0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert list(_walk_numbers(out)) == []
+    (f,) = out["folds"]
+    assert isinstance(f["error_estimate"], float)
+    # a reference expecting a fold the new run could not locate fails with the reason
+    ok, table = compare_folds(
+        [], [{"value": 3.5}], 1e-8,
+        [{"kind": "fold", "value": 3.5000001, "reason": "the fold did not relocate",
+          "what_to_try": "finer cheb_points"}])
+    assert not ok and "UNLOCATED" in table and "the fold did not relocate" in table
+    with pytest.raises(FoldMismatch, match="MISSING"):
+        assert_folds([], [{"value": 3.5}])
+    with pytest.raises(FoldMismatch, match="UNEXPECTED"):
+        assert_folds([{"value": 3.5}], [])
+
+
+def test_problem_is_immutable_and_records_the_key():
+    bs = trace_branches(load_scene("supp-fig5"), error_estimates=False)
+    P = bs.problem
+    before = dict(P.params)
+    P2 = P.with_(**{"drop.area": 1.2})
+    assert P.params == before and P2.params["area"] == 1.2 and P2 is not P
+    assert all(br.parameter == "drop.wetted_length" for br in bs.branches)
+    assert json.loads(json.dumps(bs.branches[0].to_dict()))["parameter"] == "drop.wetted_length"
+    with pytest.raises(ValueError, match="not a parameter of the wet elastica"):
+        P.with_(**{"drop.colour": 1.0})
+
+
+def test_range_outside_the_admissible_region_is_bad_input():
+    sc = load_scene("supp-fig5", {"drop.distance_from_end": 1.6})
+    with pytest.raises(SceneError, match=r"--range: .*admissible region"):
+        trace_branches(sc, "drop.wetted_length", (3.3, 4.0))
