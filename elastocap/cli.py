@@ -184,13 +184,34 @@ def cmd_folds(args) -> int:
     return 0
 
 
+def _announce_compiles():
+    """Show dynamics' announcements of a first compilation on stderr (a logging handler
+    on the "dynamics" logger, for this command only)."""
+    import logging
+
+    logger = logging.getLogger("dynamics")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("elastocap: %(message)s"))
+    logger.addHandler(handler)
+    if logger.level == logging.NOTSET or logger.level > logging.INFO:
+        logger.setLevel(logging.INFO)
+    return logger, handler
+
+
 def cmd_impact(args) -> int:
+    from dynamics.cache import CacheError
     from elastocap.impact import run_impact
 
     scene = _load(args)
     if args.frames is not None and args.frames < 2:
         raise UsageError(f"--frames: got {args.frames}; expected an integer >= 2")
-    res = run_impact(scene)
+    logger, handler = _announce_compiles()
+    try:
+        res = run_impact(scene)
+    except CacheError as err:
+        raise UsageError(str(err)) from None
+    finally:
+        logger.removeHandler(handler)
     rep = res.to_dict()
     if args.out:
         from elastocap.frames import frame_strip
@@ -210,7 +231,8 @@ def cmd_impact(args) -> int:
         print(f"{scene.name}: {res.outcome} ({res.criterion})")
         print(
             f"  final measure {res.final_measure:.6f}, t_end {res.t_end:.4g}, {res.steps} "
-            f"steps, {res.wall_time_s:.2f} s, {res.status}"
+            f"steps, run {res.run_time_s:.2f} s (+ compile/load {res.compile_time_s:.2f} s), "
+            f"{res.status}"
         )
         if res.rod_crossing_time is not None or res.interface_crossing_time is not None:
             print(
@@ -220,6 +242,8 @@ def cmd_impact(args) -> int:
             )
         for f in rep.get("files", []):
             print(f"  wrote {f}")
+    if res.outcome == "undecided":
+        print(f"elastocap: warning: outcome undecided: {res.undecided_reason}", file=sys.stderr)
     if res.outcome == "failed":  # a numerical failure: diagnosed, exit 1 (not bad input)
         print(f"elastocap: impact failed: {res.message}", file=sys.stderr)
         return 1

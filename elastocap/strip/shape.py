@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from elastocap.statics.shape import arc_points, count_crossings
+from elastocap.geometry import arc_points, count_crossings
 from elastocap.statics.spectral import lgl_interp_matrix
 
 __all__ = [
