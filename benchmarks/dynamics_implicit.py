@@ -4,7 +4,7 @@ Prints, in one run on the same machine:
 
 1. supp-fig5 impacts (100 edges, drop area 1.5, damping 0.2, built as
    ``elastocap.impact.run_impact`` builds them) at Delta = 2.5, 3.50, 3.55, 4.0: RATTLE at
-   the impact run's default step and at half of it, and ``simulate_implicit`` at
+   the impact run's default step and at half of it, and ``simulate(method="midpoint")`` at
    dt = k x the explicit bound ``stable_dt`` for k = 1, 4, 16, 64, 128: steps, wall time
    (median of repeats, interleaved), Newton iterations and factorisations per step, final
    measure M = (theta(L) - theta(0))/pi, its difference from RATTLE, the largest
@@ -32,7 +32,6 @@ Usage: ``python benchmarks/dynamics_implicit.py [--fast] [--only 6,7]``.
 from __future__ import annotations
 
 import argparse
-import functools
 import math
 import os
 import sys
@@ -40,16 +39,14 @@ import time
 
 import numpy as np
 
-from dynamics import Damping, Rod, simulate, stable_dt
-from dynamics.implicit import simulate_implicit
-from dynamics.stepper import RestCriterion
+from dynamics import Damping, RestCriterion, Rod, simulate, stable_dt
 from elastocap import impact as _impact
 from elastocap.capillary import Capillary
-from elastocap.impact import turning_measure
+from elastocap.geometry import turning_measure
 from elastocap.scene import load_scene
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests", "dynamics"))
-from dyn_helpers import rod_from_angles  # noqa: E402
+from dyn_helpers import rod_from_angles, simulate_midpoint  # noqa: E402
 
 L, AREA, GAMMA, DAMPING, N_EDGES = 4.6, 1.5, 1.0, 0.2, 100
 #: RATTLE's step in the impact run (fraction of the explicit bound), read from elastocap
@@ -72,7 +69,7 @@ def run(delta, method, k, n=N_EDGES, t_max=200.0, dt=None):
     dt = dt or k * stable_dt(rod.edge_len, rod.mu, rod.B)
     frames = np.arange(0.0, t_max + 1e-9, FRAME_DT)
     rest = RestCriterion(1e-6 * GAMMA * delta, 1.0)
-    f = simulate if method == "rattle" else simulate_implicit
+    f = simulate if method == "rattle" else simulate_midpoint
     t = time.perf_counter()
     r = f(rod, effects, dt=dt, t_end=t_max, frames=frames, rest=rest)
     wall = time.perf_counter() - t
@@ -89,7 +86,7 @@ def row(label, r, M, walls, ref_M=None, ref_hist=None, ref_times=None):
         tt = r.times[:m]
         sel = tt <= 50.0
         traj = f"{np.max(np.abs(M[:m][sel] - ref_hist[:m][sel])):.1e}"
-    it = r.shake_iterations_mean
+    it = r.stats["iterations_mean"]
     fac = getattr(r, "jacobians", None)
     fac = "" if fac is None else f"{fac / max(r.steps, 1):.2f}"
     out = "encaps" if Mf > 1 else "open"
@@ -113,7 +110,7 @@ def bench_impacts(deltas, ks, repeat):
             for c in cases:
                 r, M, w = run(delta, *c)
                 res[c] = (r, M)
-                walls[c].append(r.wall_time)
+                walls[c].append(r.stats["run_time"])
         ref_r, ref_M = res[cases[0]]
         for c in cases:
             r, M = res[c]
@@ -175,17 +172,17 @@ def bench_energy(ks, t_end):
     r = simulate(rod, (), dt=0.9 * b, t_end=t_end, frames=1001)
     E = r.energies["total"]
     sc = r.energies["bending"][0]
-    print(f"RATTLE 0.9xb     {r.steps:7d} steps {r.wall_time:6.3f} s  err "
+    print(f"RATTLE 0.9xb     {r.steps:7d} steps {r.stats['run_time']:6.3f} s  err "
           f"{np.abs(E - E[0]).max() / sc:.2e}  drift "
           f"{abs(E[-100:].mean() - E[:100].mean()) / sc:.1e}  "
-          f"constraint {r.constraint_error_max:.1e}")
+          f"constraint {r.stats['constraint_error']:.1e}")
     for k in ks:
-        r = simulate_implicit(rod, (), dt=k * b, t_end=t_end, frames=1001)
+        r = simulate_midpoint(rod, (), dt=k * b, t_end=t_end, frames=1001)
         E = r.energies["total"]
-        print(f"implicit {k:4g}xb  {r.steps:7d} steps {r.wall_time:6.3f} s  err "
+        print(f"implicit {k:4g}xb  {r.steps:7d} steps {r.stats['run_time']:6.3f} s  err "
               f"{np.abs(E - E[0]).max() / sc:.2e}  drift "
               f"{abs(E[-100:].mean() - E[:100].mean()) / sc:.1e}  "
-              f"constraint {r.constraint_error_max:.1e}  it {r.shake_iterations_mean:.2f}")
+              f"constraint {r.stats['constraint_error']:.1e}  it {r.stats['iterations_mean']:.2f}")
 
 
 def bench_scaling(t_end=10.0):
@@ -198,10 +195,10 @@ def bench_scaling(t_end=10.0):
         line = f"N = {n:4d}: "
         if n <= 200:
             r = simulate(rod, eff(), dt=RATTLE_FRACTION * b, t_end=t_end, frames=2)
-            line += f"RATTLE {r.steps:7d} steps {r.wall_time:7.3f} s | "
-        r = simulate_implicit(rod, eff(), dt=0.02, t_end=t_end, frames=2)
-        line += (f"implicit {r.steps:5d} steps {r.wall_time:6.3f} s "
-                 f"({0.02 / b:.0f}x bound, {r.shake_iterations_mean:.2f} it/step)")
+            line += f"RATTLE {r.steps:7d} steps {r.stats['run_time']:7.3f} s | "
+        r = simulate_midpoint(rod, eff(), dt=0.02, t_end=t_end, frames=2)
+        line += (f"implicit {r.steps:5d} steps {r.stats['run_time']:6.3f} s "
+                 f"({0.02 / b:.0f}x bound, {r.stats['iterations_mean']:.2f} it/step)")
         print(line)
 
 
@@ -214,18 +211,12 @@ IMPLICIT_VARIANTS = (
 
 
 def impact_run(scene, overrides, integrator, kwargs=None, dt_multiple=None):
-    """One ``run_impact`` with the implicit stepper's keyword arguments ``kwargs`` (the
-    module attribute is patched for the call) and optionally dt = multiple x dt_max."""
+    """One ``run_impact`` with the midpoint method's options ``kwargs`` and optionally
+    dt = multiple x dt_max."""
     ov = dict(overrides, **{"numerics.integrator": integrator})
     if dt_multiple is not None:
         ov["numerics.dt"] = dt_multiple * _impact.impact_settings(load_scene(scene, ov))["dt_max"]
-    saved = _impact.simulate_implicit
-    if kwargs is not None:
-        _impact.simulate_implicit = functools.partial(simulate_implicit, **kwargs)
-    try:
-        return _impact.run_impact(load_scene(scene, ov))
-    finally:
-        _impact.simulate_implicit = saved
+    return _impact.run_impact(load_scene(scene, ov), **(kwargs or {}))
 
 
 def impact_row(label, res, walls, ref=None):
@@ -234,7 +225,7 @@ def impact_row(label, res, walls, ref=None):
     fac = "" if fac is None else f"{fac / max(s.steps, 1):.2f}"
     dM = "" if ref is None else f"{res.final_measure - ref.final_measure:+.1e}"
     print(f"{label:23s} {res.settings['dt']:8.2e} {s.steps:7d} {np.median(walls):7.2f} "
-          f"{s.shake_iterations_mean:5.2f} {fac:>5s} {s.rejected_steps:5d} "
+          f"{s.stats['iterations_mean']:5.2f} {fac:>5s} {s.stats['rejected_steps']:5d} "
           f"{res.outcome:12s} {res.final_measure:9.5f} {dM:>8s} {res.end_position:9.4f} "
           f"{res.energy_rise:8.1e} {res.t_end:6.1f} {res.status}")
 
@@ -265,7 +256,7 @@ def bench_whole_impacts(repeat, cases=IMPACTS):
         for _ in range(repeat):
             for lab, integ, kw in variants:
                 res[lab] = impact_run(scene, ov, integ, kw)
-                walls[lab].append(res[lab].simulation.wall_time)
+                walls[lab].append(res[lab].simulation.stats["run_time"])
         for lab, _, _ in variants:
             impact_row(lab, res[lab], walls[lab], None if lab == "RATTLE" else res["RATTLE"])
 
@@ -283,7 +274,7 @@ def bench_ground_dt(repeat, multiples=(2, 4, 8, 16, 32)):
         for _ in range(repeat):
             for lab, integ, k in variants:
                 res[lab] = impact_run(scene, ov, integ, {}, k)
-                walls[lab].append(res[lab].simulation.wall_time)
+                walls[lab].append(res[lab].simulation.stats["run_time"])
         for lab, _, _ in variants:
             impact_row(lab, res[lab], walls[lab], None if lab == "RATTLE" else res["RATTLE"])
 

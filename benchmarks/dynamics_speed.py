@@ -160,7 +160,7 @@ def bench_overhead(n=200, steps=20000, repeat=5):
 
     def gen():
         r = simulate(rod, (), dt=dt, t_end=steps * dt, frames=2)
-        return r.wall_time
+        return r.stats["run_time"]
 
     def kern():
         bending_loop(rod.x, rod.edge_len, 1.0, np.zeros_like(rod.x), steps)
@@ -202,7 +202,7 @@ def bench_effects(n=200, steps=20000, repeat=5):
     for _ in range(repeat):
         for name, make in cases.items():
             times[name].append(simulate(rod, make(), dt=dt, t_end=steps * dt, frames=2)
-                               .wall_time / steps)
+                               .stats["run_time"] / steps)
     base = min(times["bending only"])
     for name, ts in times.items():
         t = min(ts)
@@ -217,15 +217,15 @@ def bench_scenes():
         dt = dynamics.stable_dt(rod.edge_len, 1, 1)
         r = simulate(rod, (), dt=dt, t_end=t_end, frames=101)
         print(f"supp-fig5 free rod L=4.6 N={n:3d} t_end={t_end:4.0f} dt={dt:.2e}: "
-              f"{r.steps:7d} steps {r.wall_time:6.3f} s  "
-              f"({(n + 1) * r.steps / r.wall_time / 1e6:.1f} M node-updates/s)")
+              f"{r.steps:7d} steps {r.stats['run_time']:6.3f} s  "
+              f"({(n + 1) * r.steps / r.stats['run_time'] / 1e6:.1f} M node-updates/s)")
     for n in (100, 150):
         rod = Rod.straight(n, 14.3, angle=0.3, origin=(0.0, 0.2))
         dt = dynamics.stable_dt(rod.edge_len, 1, 1)
         r = simulate(rod, (Gravity(1.0), Ground(), Damping(0.05)), dt=dt, t_end=20.0,
                      frames=101)
         print(f"strip L=14.3 gravity+ground+damping N={n} t_end=20 dt={dt:.2e}: "
-              f"{r.steps:7d} steps {r.wall_time:6.3f} s  status {r.status}")
+              f"{r.steps:7d} steps {r.stats['run_time']:6.3f} s  status {r.status}")
 
 
 IMPACT_CASES = (("supp-fig5", {}), ("supp-fig5", {"drop.wetted_length": 3.5}),
@@ -248,10 +248,13 @@ for name, ov in json.loads(sys.argv[2]):
         r = run_impact(scene)
         cpu.append(time.thread_time() - c)
         wall.append(time.perf_counter() - w)
+    s = r.simulation
+    # a revision before the driver's ``stats`` has the same numbers as attributes
+    st = getattr(s, "stats", None) or dict(iterations_mean=s.shake_iterations_mean,
+                                           run_time=s.wall_time)
     print(json.dumps(dict(case=[name, ov], cpu=min(cpu), wall=min(wall), outcome=r.outcome,
                           final_measure=r.final_measure, t_end=r.t_end, steps=r.steps,
-                          it=r.simulation.shake_iterations_mean,
-                          loop=r.simulation.wall_time)))
+                          it=st["iterations_mean"], loop=st["run_time"])))
 """
 
 
@@ -313,8 +316,7 @@ def _bench_impacts_against(repeat, baseline, inner=2):
             for label in (trees if r % 2 == 0 else list(trees)[::-1]):
                 env = dict(os.environ, PYTHONPATH=trees[label])
                 if label == baseline:
-                    # its generated steppers are keyed by the exported files' times: keep
-                    # them out of the user's cache
+                    # keep the revision's generated steppers out of the user's cache
                     env["DYNAMICS_CACHE_DIR"] = os.path.join(tmp, "_stepper_cache")
                 out = subprocess.run([sys.executable, "-c", IMPACT_SNIPPET, trees[label], cases,
                                       str(inner)], env=env, cwd=trees[label],
@@ -340,7 +342,7 @@ def bench_python_loop(n=100, steps=2000):
     section(f"4. Python call per step vs compiled loop ({n} edges)")
     rod = wavy_rod(n)
     dt = dynamics.stable_dt(rod.edge_len, 1, 1)
-    mod = dynamics.compile_stepper(())
+    mod = dynamics.rattle.compile_stepper(())
     x, v = rod.x.copy(), rod.v.copy()
     m = rod.mass
     winv0 = np.repeat((1 / m)[:, None], 2, axis=1).copy()
@@ -466,7 +468,7 @@ import dynamics
 ti = time.perf_counter() - t
 rod = dynamics.Rod.straight(50, 4.6)
 r = dynamics.simulate(rod, ({effects}), dt=1e-3, t_end=0.01, frames=2)
-print(ti, r.compile_time, time.perf_counter() - t)
+print(ti, r.stats["compile_time"], time.perf_counter() - t)
 """
 
 

@@ -7,11 +7,16 @@ Quick use::
     from dynamics import Rod, Gravity, Ground, simulate
     rod = Rod.straight(100, 4.6, mu=1.0, B=1.0)
     res = simulate(rod, (Gravity(1.0), Ground()), dt=5e-4, t_end=10.0)
-    res.positions  # (n_frames, 101, 2); res.energies["total"]; res.message
+    res.positions  # (n_frames, 101, 2); res.energies["total"]; res.message; res.stats
+    res = simulate(rod, (Gravity(1.0), Ground()), method="midpoint", dt=5e-3, t_end=10.0)
+
+One driver (:mod:`dynamics.driver`), one module per method (:mod:`dynamics.rattle`,
+:mod:`dynamics.midpoint`), one cache of generated steppers (:mod:`dynamics.cache`).
 """
 
 from .bending import bending_energy, bending_force_add, bending_gradient, discrete_curvature
 from .constraints import constraint_error
+from .driver import METHODS, STATS_KEYS, Event, RestCriterion, SimulationResult, simulate
 from .effects import (
     Clamp,
     Damping,
@@ -21,30 +26,20 @@ from .effects import (
     Ground,
     PointLoad,
 )
-from .implicit import compile_implicit, simulate_implicit
+from .rattle import DT_BOUND_C, stable_dt
 from .reference import euler_bernoulli_omega
 from .rod import Rod
-from .stepper import (
-    DT_BOUND_C,
-    Event,
-    RestCriterion,
-    SimulationResult,
-    compile_stepper,
-    simulate,
-    stable_dt,
-)
 
 __all__ = [
     "Rod",
     "simulate",
-    "simulate_implicit",
-    "compile_implicit",
+    "METHODS",
+    "STATS_KEYS",
     "Event",
     "RestCriterion",
     "SimulationResult",
     "stable_dt",
     "DT_BOUND_C",
-    "compile_stepper",
     "Effect",
     "Gravity",
     "Ground",

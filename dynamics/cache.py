@@ -59,6 +59,7 @@ __all__ = [
     "dependency_digest",
     "evict",
     "info",
+    "is_compiled",
     "load_module",
     "module_closure",
 ]
@@ -274,6 +275,27 @@ def load_module(prefix: str, source: str, depends: str) -> types.ModuleType:
         raise
     _LOADED[modname] = module
     return module
+
+
+def is_compiled(module, functions) -> bool:
+    """Whether numba's on-disk cache holds compiled code for each of ``functions`` of a
+    generated ``module`` (its data files, named ``<module>.<function>-<line>.py<ver>*.nbc``
+    as numba's caching documentation describes, beside the module or under
+    ``$NUMBA_CACHE_DIR``).  Used to announce a first compilation; a wrong answer costs
+    only the announcement."""
+    name = module.__name__
+    numba_dir = os.environ.get("NUMBA_CACHE_DIR")
+    if numba_dir:
+        import glob
+
+        found = glob.glob(os.path.join(glob.escape(numba_dir), "**", f"{name}.*.nbc"),
+                          recursive=True)
+    else:
+        pyc = os.path.join(os.path.dirname(module.__file__), "__pycache__")
+        found = [f for f in (os.listdir(pyc) if os.path.isdir(pyc) else ())
+                 if f.startswith(name + ".") and f.endswith(".nbc")]
+    have = {os.path.basename(f)[len(name) + 1:].split("-", 1)[0] for f in found}
+    return all(f in have for f in functions)
 
 
 def _entries(d: str) -> dict[str, list[str]]:

@@ -43,7 +43,7 @@ building, no division chain).  Measured on 198 edges (``benchmarks/dynamics_spee
 maximum), 0.42 (elimination; 0.62 with the division in the chain and the maximum in the
 loop, as before), 0.19 (substitution) and 0.21 us (node update); a velocity projection
 1.5 us.  In a run the previous step's multipliers are a better start still (see
-:mod:`dynamics.stepper`).
+:mod:`dynamics.rattle`).
 
 Work arrays: ``work`` has shape ``(WORK_ROWS, n_edges + 2)``; the entry of edge ``i`` sits
 in column ``i + 1`` and columns ``0`` and ``n_edges + 1`` are zero pads, so that the first

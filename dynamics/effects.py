@@ -8,7 +8,7 @@ Every effect is a small object with four attributes (the *effect protocol*):
     Selects the call site and the kernel signature, see below.
 ``params`` : ndarray of float64, shape (p,)
     All the effect's parameters.  The stepper passes this very array to the kernel, so a
-    timed :class:`~dynamics.stepper.Event` (or the user, between runs) changes a
+    timed :class:`~dynamics.Event` (or the user, between runs) changes a
     parameter by writing ``params[j]``.  Integer parameters (node indices) are stored as
     floats and cast in the kernel.
 ``kernel`` : numba dispatcher, ``numba.njit(cache=True)``, defined at module level
@@ -34,8 +34,17 @@ Every effect is a small object with four attributes (the *effect protocol*):
       velocity projection: set the velocities of the held coordinates (and leave ``winv``
       as stage 0 set it: the velocity projection reuses SHAKE's copy of it).
 
-Optional hook of a force effect, read by the implicit stepper only
-(:func:`dynamics.simulate_implicit`; RATTLE needs no derivatives):
+How a method learns what an effect is: from ``kind`` and from optional attributes, never
+from the effect's name or its position in the list.  Optional attributes:
+
+``ground_height_param`` : int, of a constraint effect
+    Declares the effect a frictionless rigid ground ``z >= params[ground_height_param]``
+    (perfectly inelastic).  RATTLE calls its kernel like any constraint's; the midpoint
+    method (:mod:`dynamics.midpoint`) does not call it and puts the ground into its Newton
+    system instead (it needs the index to be 0).  :class:`Ground` sets it.
+
+Optional hook of a force effect, read by the midpoint method only (RATTLE needs no
+derivatives):
 
 ``stiffness`` : numba dispatcher, ``numba.njit(cache=True)``, module level
     ``stiffness(x, v, t, params, edge_len, mass, K, U, C) -> int``: the stiffness
@@ -427,6 +436,7 @@ class Ground(Effect):
     kind = "constraint"
     param_names = ("z0",)
     kernel = ground_kernel
+    ground_height_param = 0
 
     def __init__(self, z0=0.0, name="ground"):
         super().__init__(name, [z0])

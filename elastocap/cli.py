@@ -237,7 +237,22 @@ def cmd_folds(args) -> int:
     return 0
 
 
+def _announce_compiles():
+    """Show dynamics' announcements of a first compilation on stderr (a logging handler
+    on the "dynamics" logger, for this command only)."""
+    import logging
+
+    logger = logging.getLogger("dynamics")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("elastocap: %(message)s"))
+    logger.addHandler(handler)
+    if logger.level == logging.NOTSET or logger.level > logging.INFO:
+        logger.setLevel(logging.INFO)
+    return logger, handler
+
+
 def cmd_impact(args) -> int:
+    from dynamics.cache import CacheError
     from elastocap.impact import run_impact
 
     scene = _load(args)
@@ -253,8 +268,14 @@ def cmd_impact(args) -> int:
     from elastocap.progress import heartbeat
 
     progress = _progress(args, "impact")
-    with heartbeat(progress, 0, 2, f"running the impact of {scene.name} (compiles on first use)"):
-        res = run_impact(scene)
+    logger, handler = _announce_compiles()
+    try:
+        with heartbeat(progress, 0, 2, f"running the impact of {scene.name}"):
+            res = run_impact(scene)
+    except CacheError as err:
+        raise UsageError(str(err)) from None
+    finally:
+        logger.removeHandler(handler)
     progress(1, 2, f"{res.outcome} after {res.steps} steps; writing the files and the figure")
     rep = res.to_dict()
     from elastocap.frames import frame_strip
@@ -277,7 +298,8 @@ def cmd_impact(args) -> int:
         print(f"{scene.name}: {res.outcome} ({res.criterion})")
         print(
             f"  final measure {res.final_measure:.6f}, t_end {res.t_end:.4g}, {res.steps} "
-            f"steps, {res.wall_time_s:.2f} s, {res.status}"
+            f"steps, run {res.run_time_s:.2f} s (+ compile/load {res.compile_time_s:.2f} s), "
+            f"{res.status}"
         )
         if res.rod_crossing_time is not None or res.interface_crossing_time is not None:
             print(
@@ -287,6 +309,8 @@ def cmd_impact(args) -> int:
             )
         for f in rep.get("files", []):
             print(f"  wrote {f}")
+    if res.outcome == "undecided":
+        print(f"elastocap: warning: outcome undecided: {res.undecided_reason}", file=sys.stderr)
     if res.outcome == "failed":  # a numerical failure: diagnosed, exit 1 (not bad input)
         print(f"elastocap: impact failed: {res.message}", file=sys.stderr)
         return 1

@@ -22,8 +22,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from elastocap.geometry import arclength, turning_from
+
 __all__ = [
     "CriterionResult",
+    "ImpactVerdict",
+    "UNDECIDED",
+    "frame_verdicts",
+    "impact_verdict",
     "companion_outcome",
     "final_contact_lines",
     "lab_frame_outcome",
@@ -32,6 +38,8 @@ __all__ = [
 
 ENCAPSULATED = "encapsulated"
 OPEN = "open"
+UNDECIDED = "undecided"
+FAILED = "failed"
 
 
 @dataclass(frozen=True)
@@ -61,15 +69,6 @@ class CriterionResult:
         return dict(vars(self))
 
 
-def _arclength(x: np.ndarray, length: float | None) -> np.ndarray:
-    """Node arclengths (n + 1,) of a polyline, rescaled so the last one is ``length``."""
-    seg = np.hypot(*np.diff(x, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    if length is not None and s[-1] > 0.0:
-        s *= length / s[-1]
-    return s
-
-
 def _check_positions(positions) -> np.ndarray:
     x = np.asarray(positions, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != 2 or x.shape[0] < 2:
@@ -86,7 +85,7 @@ def point_and_tangent(positions, s: float, length: float | None = None):
     polyline (n + 1, 2). At a node the edge that starts there is used (the last edge at S =
     L). ``length`` rescales the polyline's arclength to the rod length (scene units)."""
     x = _check_positions(positions)
-    sn = _arclength(x, length)
+    sn = arclength(x, length)
     if not (sn[0] - 1e-12 * sn[-1] <= s <= sn[-1] * (1.0 + 1e-12)):
         raise ValueError(f"s: got {s!r}; expected 0 <= s <= L = {sn[-1]!r}")
     k = int(np.clip(np.searchsorted(sn, s, side="right") - 1, 0, len(sn) - 2))
@@ -94,18 +93,6 @@ def point_and_tangent(positions, s: float, length: float | None = None):
     h = math.hypot(e[0], e[1])
     frac = (s - sn[k]) / (sn[k + 1] - sn[k])
     return x[k] + frac * e, e / h
-
-
-def _turning(x: np.ndarray, s_from: float, length: float) -> float:
-    """(theta(L) - theta(s_from)) / pi: summed turning angles of the edges after s_from."""
-    sn = _arclength(x, length)
-    k = int(np.clip(np.searchsorted(sn, s_from, side="right") - 1, 0, len(sn) - 2))
-    e = np.diff(x[k:], axis=0)
-    if len(e) < 2:
-        return 0.0
-    cross = e[:-1, 0] * e[1:, 1] - e[:-1, 1] * e[1:, 0]
-    dot = np.sum(e[:-1] * e[1:], axis=1)
-    return float(np.sum(np.arctan2(cross, dot)) / math.pi)
 
 
 def final_contact_lines(scene) -> tuple[float, float]:
@@ -142,7 +129,7 @@ def lab_frame_outcome(positions, scene) -> CriterionResult:
         outcome=ENCAPSULATED if m < 0.0 else OPEN,
         measure=m,
         criterion="paper (Methods): x(L) < x(S_c) in the lab frame",
-        turning=_turning(x, s1, L),
+        turning=turning_from(x, s1, L),
     )
 
 
@@ -187,5 +174,93 @@ def companion_outcome(positions, scene) -> CriterionResult:
         outcome=ENCAPSULATED if c < 0.0 else OPEN,
         measure=c,
         criterion="companion: (x(L) - x(S_c)) . t(S1) < 0 (rod frame at the contact line S1)",
-        turning=_turning(x, s1, L),
+        turning=turning_from(x, s1, L),
     )
+
+
+# ------------------------------------------------------------------------- impact outcome
+
+#: The criterion each kind of scene is judged by (one line, recorded with the outcome).
+LAB_FRAME = "paper (Methods): x(L) < x(L - x_impact) in the lab frame"
+FREE_ROD = "free rod: measure (theta(L) - theta(0))/pi > 1"
+
+
+def frame_verdicts(scene, positions, s_nodes, measures) -> tuple[str, np.ndarray, np.ndarray]:
+    """The impact criterion read on every frame: (criterion, encapsulated (k,) bool, the
+    signed quantity (k,) it thresholds).
+
+    Scenes with gravity or a ground: the paper's lab-frame test on x(L) - x(S_c) (negative
+    when encapsulated; ``s_nodes`` the nodes' rest arclengths).  The free rod without
+    gravity: the encapsulation measure M = (theta(L) - theta(0))/pi (``measures``, one per
+    frame) against 1.
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    if scene.effects.gravity > 0 or scene.effects.ground:
+        xc = np.array([np.interp(scene.drop.center, s_nodes, p[:, 0]) for p in pos])
+        q = pos[:, -1, 0] - xc
+        return LAB_FRAME, q < 0.0, q
+    m = np.asarray(measures, dtype=np.float64)
+    return FREE_ROD, m > 1.0, m
+
+
+@dataclass(frozen=True)
+class ImpactVerdict:
+    """The outcome of an impact run and what it rests on.
+
+    Attributes
+    ----------
+    outcome : str
+        "open" or "encapsulated" when the run is decided; "undecided" (``reason`` says
+        why) or "failed" (a numerical failure) otherwise.
+    criterion : str
+    at_rest : bool
+        The run came to rest before t_max.
+    decision_time : float or None
+        Time of the frame from which the criterion's verdict no longer changes (None when
+        there are no frames).
+    reason : str or None
+        Why the outcome is undecided (None when decided or failed).
+    """
+
+    outcome: str
+    criterion: str
+    at_rest: bool
+    decision_time: float | None
+    reason: str | None = None
+
+
+def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,
+                   rise_ok, rise_note, rod_crossing_time) -> ImpactVerdict:
+    """The outcome of an impact, decided in one place.
+
+    ``open``/``encapsulated`` only when the run succeeded numerically (else ``failed``),
+    came to rest before ``t_max``, its energy audit passed (``rise_ok``; ``rise_note`` says
+    what failed), and the verdict was settled before the rod first crossed itself (the
+    model has no rod-rod contact: a verdict reached after such a crossing rests on motion
+    the model cannot represent).  Otherwise ``undecided`` with the reason.  The verdict
+    at the last frame is the outcome; it is "settled" at the first frame after which it no
+    longer changes (``decision_time``).
+    """
+    enc = np.asarray(encapsulated, dtype=bool)
+    times = np.asarray(times, dtype=np.float64)
+    decision = None
+    if enc.size:
+        flips = np.nonzero(enc[1:] != enc[:-1])[0]
+        decision = float(times[flips[-1] + 1] if flips.size else times[0])
+    if not success or not enc.size:
+        return ImpactVerdict(FAILED, criterion, bool(at_rest), decision)
+    reasons = []
+    if not at_rest:
+        reasons.append(f"the run did not come to rest by t_max = {t_max:g} (raise "
+                       "numerics.t_max, or add damping)")
+    if not rise_ok:
+        reasons.append(f"the energy audit failed: {rise_note}")
+    if rod_crossing_time is not None and decision >= rod_crossing_time:
+        reasons.append(
+            f"the verdict settled at t = {decision:.4g}, after the rod crossed itself at "
+            f"t = {rod_crossing_time:.4g} (the model has no contact of the rod with itself)")
+    outcome = ENCAPSULATED if enc[-1] else OPEN
+    if reasons:
+        return ImpactVerdict(UNDECIDED, criterion, bool(at_rest), decision,
+                             f"would read {outcome}, but " + "; ".join(reasons))
+    return ImpactVerdict(outcome, criterion, bool(at_rest), decision)

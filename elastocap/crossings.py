@@ -6,8 +6,8 @@ the rod crosses itself and the first where the circular-cap interface crosses th
 One compiled pass over all frames: per frame, the interface is drawn with
 ``INTERFACE_POINTS`` points from the cap half-angle of
 :func:`elastocap.drop.capillary_energy_and_gradient` (the same arc as
-:func:`elastocap.statics.shape.arc_points`), and the crossing test is that of
-:func:`elastocap.statics.shape.count_crossings` (touching end points do not count), run
+:func:`elastocap.geometry.arc_points`), and the crossing test is that of
+:func:`elastocap.geometry.count_crossings` (touching end points do not count), run
 only on the segment pairs whose bounding boxes overlap.
 """
 
@@ -19,9 +19,9 @@ import numba
 import numpy as np
 
 from elastocap.drop import _locate, capillary_energy_and_gradient
-from elastocap.statics.shape import segments_cross
+from elastocap.geometry import segments_cross
 
-__all__ = ["INTERFACE_POINTS", "first_crossing_frames", "turning_measures"]
+__all__ = ["INTERFACE_POINTS", "first_crossing_frames"]
 
 #: Points on the drawn interface (its ends sit on the rod and are not tested).
 INTERFACE_POINTS = 80
@@ -101,7 +101,7 @@ def _segment_boxes(b, box, bbox):
 @numba.njit(cache=True)
 def _any_crossing(a, b, same, skip_a0, skip_a1, box, bbox):
     """``count_crossings(a, b, same, skip_a0, skip_a1) > 0``
-    (:func:`elastocap.statics.shape.count_crossings`), stopping at the first crossing and
+    (:func:`elastocap.geometry.count_crossings`), stopping at the first crossing and
     testing only the segment pairs whose bounding boxes overlap.
 
     ``box`` and ``bbox`` hold the boxes of b's segments (:func:`_segment_boxes`).  A pair of
@@ -174,122 +174,3 @@ def first_crossing_frames(positions, s_nodes, cap_params):
             if _any_crossing(iface, pos, False, 1, INTERFACE_POINTS - 2, box, bbox):
                 k_if = k
     return k_rod, k_if
-
-
-@numba.njit(cache=True)
-def _block_sum(a, lo, hi):
-    """numpy's pairwise summation of a[lo:hi] for hi - lo <= 128: 8 running sums."""
-    n = hi - lo
-    if n < 8:
-        s = 0.0
-        for i in range(lo, hi):
-            s += a[i]
-        return s
-    r0 = a[lo]
-    r1 = a[lo + 1]
-    r2 = a[lo + 2]
-    r3 = a[lo + 3]
-    r4 = a[lo + 4]
-    r5 = a[lo + 5]
-    r6 = a[lo + 6]
-    r7 = a[lo + 7]
-    i = 8
-    while i < n - n % 8:
-        r0 += a[lo + i]
-        r1 += a[lo + i + 1]
-        r2 += a[lo + i + 2]
-        r3 += a[lo + i + 3]
-        r4 += a[lo + i + 4]
-        r5 += a[lo + i + 5]
-        r6 += a[lo + i + 6]
-        r7 += a[lo + i + 7]
-        i += 8
-    s = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    while i < n:
-        s += a[lo + i]
-        i += 1
-    return s
-
-
-@numba.njit(cache=True)
-def _pairwise_sum(a, lo, hi):
-    """Sum of a[lo:hi] in the order of numpy's pairwise summation (``np.sum`` of a
-    contiguous row: blocks of up to 128 terms, halves combined recursively), bit for bit.
-
-    The recursion is unrolled onto an explicit stack (numba's cache mishandles recursive
-    functions: the cached copy crashed).
-    """
-    if hi - lo <= 128:
-        return _block_sum(a, lo, hi)
-    # post-order walk: frames (lo, hi, state), state 0 = split, 1 = left done, 2 = both
-    depth = 64
-    flo = np.empty(depth, dtype=np.int64)
-    fhi = np.empty(depth, dtype=np.int64)
-    fst = np.zeros(depth, dtype=np.int64)
-    fval = np.zeros(depth)
-    top = 0
-    flo[0] = lo
-    fhi[0] = hi
-    result = 0.0
-    while top >= 0:
-        l = flo[top]
-        h = fhi[top]
-        n = h - l
-        if n <= 128:
-            val = _block_sum(a, l, h)
-            top -= 1
-        elif fst[top] == 0:
-            n2 = n // 2
-            n2 -= n2 % 8
-            fst[top] = 1
-            top += 1
-            flo[top] = l
-            fhi[top] = l + n2
-            fst[top] = 0
-            continue
-        elif fst[top] == 1:
-            n2 = n // 2
-            n2 -= n2 % 8
-            fst[top] = 2
-            top += 1
-            flo[top] = l + n2
-            fhi[top] = h
-            fst[top] = 0
-            continue
-        else:
-            val = fval[top] + val
-            top -= 1
-        # hand the value to the parent: its left sum, or the right one (combined above)
-        if top < 0:
-            result = val
-        elif fst[top] == 1:
-            fval[top] = val
-        # state 2: the right value stays in ``val`` for the combination step
-    return result
-
-
-@numba.njit(cache=True)
-def _turning_measures(positions, out):
-    nf = positions.shape[0]
-    n = positions.shape[1]
-    ang = np.empty(max(n - 2, 0))
-    for k in range(nf):
-        for i in range(n - 2):
-            ax = positions[k, i + 1, 0] - positions[k, i, 0]
-            az = positions[k, i + 1, 1] - positions[k, i, 1]
-            bx = positions[k, i + 2, 0] - positions[k, i + 1, 0]
-            bz = positions[k, i + 2, 1] - positions[k, i + 1, 1]
-            ang[i] = math.atan2(ax * bz - az * bx, ax * bx + az * bz)
-        out[k] = _pairwise_sum(ang, 0, n - 2) / math.pi
-    return out
-
-
-def turning_measures(positions: np.ndarray) -> np.ndarray:
-    """M = (theta(L) - theta(0)) / pi of each frame (n_frames, n_nodes, 2): summed turns.
-
-    Compiled (one pass, no temporaries: 11 ms -> 2 ms for supp-fig5's 1062 frames), with
-    the arithmetic of the numpy expression ``sum(arctan2(e_i x e_{i+1}, e_i . e_{i+1})) /
-    pi`` (numpy's pairwise summation order), so that the values are the same.
-    """
-    positions = np.ascontiguousarray(positions, dtype=np.float64)
-    return _turning_measures(positions, np.empty(positions.shape[0]))

@@ -6,22 +6,35 @@ over, paper main text) and the rod is released. The run ends when the kinetic en
 below ``numerics.rest_kinetic`` (times the scale gamma Delta, the capillary energy
 available) for ``numerics.rest_time``, or at ``numerics.t_max``.
 
+Three parts: :func:`build_effects` (the scene's effects, the capillary one by name),
+running (:func:`dynamics.simulate` with the scene's method, retried with a smaller
+automatic dt after a failure or an energy rise), and classifying (crossings, measures and
+the outcome of :func:`elastocap.criteria.impact_verdict`).
+
 Outcome
 -------
-* Scenes with gravity or a ground (the strip of Fig 3): the paper's criterion (Methods):
+* The criterion is read on every frame (:func:`elastocap.criteria.frame_verdicts`):
+  scenes with gravity or a ground (the strip of Fig 3) use the paper's (Methods),
   encapsulated when the free end S = L ends to the left of the impact centre S = L - x,
-  x(L) < x(L - x_impact) in the lab frame.
-* A run that fails numerically (the projection does not converge, a non-finite state) has
-  outcome ``"failed"`` and a message saying where and what to try, never a guessed outcome.
-* The free rod without gravity (supp-fig5): encapsulated when the encapsulation measure
-  M = (theta(L) - theta(0)) / pi exceeds 1 (the two ends have turned past antiparallel: the
-  rod closes round the drop). For supp-fig5 every stable equilibrium of the flat family has
-  M < 0.59 and every one of the encapsulated family M > 1.05 (statics), so M = 1 separates
-  the two basins' end states at every Delta.
+  x(L) < x(L - x_impact) in the lab frame; the free rod without gravity (supp-fig5) uses
+  the encapsulation measure M = (theta(L) - theta(0)) / pi > 1 (the ends have turned past
+  antiparallel; for supp-fig5 every stable equilibrium of the flat family has M < 0.59 and
+  every one of the encapsulated family M > 1.05, so M = 1 separates the two basins' end
+  states at every Delta).  ``decision_time`` is the frame from which the verdict no longer
+  changes.
+* ``open`` / ``encapsulated`` only when the run came to rest before t_max, its energy audit
+  passed, and the verdict settled before the rod first crossed itself (the model has no
+  rod-rod contact).  Otherwise ``undecided``, with ``undecided_reason``.
+* A run that fails numerically (the step does not converge, a non-finite state, an energy
+  rise beyond the capillary energy scale) has outcome ``"failed"`` and a message saying
+  where and what to try, never a guessed outcome.
 
 What the model leaves out is flagged: the first time the rod crosses itself and the first
-time the drop's interface crosses the rod (checked at every output frame) are reported, and
-a run whose outcome was decided after such a crossing is marked.
+time the drop's interface crosses the rod (checked at every output frame) are reported,
+and ``decided_after_crossing`` marks a verdict that settled after either.  Scenes the run
+cannot represent (fewer than MIN_WET_EDGES edges across the wet interval, a time step
+that is not finite, too long for the rest criterion or too short to reach t_max) are
+refused before it starts.
 """
 
 from __future__ import annotations
@@ -32,18 +45,33 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dynamics import Damping, Event, Ground, Rod, simulate, simulate_implicit
-from dynamics.effects import Gravity
-from dynamics.reference import euler_bernoulli_omega
-from dynamics.stepper import RestCriterion, stable_dt
+from dynamics import (
+    Damping,
+    Event,
+    Gravity,
+    Ground,
+    RestCriterion,
+    Rod,
+    euler_bernoulli_omega,
+    simulate,
+    stable_dt,
+)
 from elastocap._version import __version__
 from elastocap.capillary import Capillary
-from elastocap.crossings import first_crossing_frames, turning_measures
+from elastocap.criteria import frame_verdicts, impact_verdict
+from elastocap.crossings import first_crossing_frames
 from elastocap.drop import capillary_energy_and_gradient
+from elastocap.geometry import arc_points, turning_measures
 from elastocap.scene import Scene, SceneError
-from elastocap.statics.shape import arc_points
 
-__all__ = ["ImpactResult", "edge_count", "impact_settings", "run_impact", "turning_measure"]
+__all__ = [
+    "ImpactEffects",
+    "ImpactResult",
+    "build_effects",
+    "edge_count",
+    "impact_settings",
+    "run_impact",
+]
 
 #: Edges per accuracy preset, as a minimum; also at least 16 edges across the wet part so
 #: that the contact lines and the pressure are resolved (measured: README, "What accuracy
@@ -104,14 +132,6 @@ FRAME_SPACING = 0.05
 MAX_FRAMES = 20001
 
 
-def turning_measure(x: np.ndarray) -> float:
-    """M = (theta(L) - theta(0)) / pi of a polyline (n, 2): the summed turning angles."""
-    e = np.diff(x, axis=0)
-    cross = e[:-1, 0] * e[1:, 1] - e[:-1, 1] * e[1:, 0]
-    dot = np.sum(e[:-1] * e[1:], axis=1)
-    return float(np.sum(np.arctan2(cross, dot)) / math.pi)
-
-
 def _interface(x, s_nodes, area, s1, s2, gamma):
     """Drop interface points (k, 2) of a rod configuration."""
     g = np.zeros_like(x)
@@ -139,6 +159,11 @@ class ImpactResult:
     interface_crossing_time: float | None
     decided_after_crossing: bool
     energy_rise: float
+    at_rest: bool
+    decision_time: float | None
+    undecided_reason: str | None
+    compile_time_s: float
+    run_time_s: float
     settings: dict
     simulation: object = field(repr=False, default=None)
     measure_history: np.ndarray = field(repr=False, default=None)
@@ -193,11 +218,37 @@ def edge_count(scene: Scene) -> int:
     )
 
 
+#: The dynamics method of each value of ``numerics.integrator``.
+METHOD = {"rattle": "rattle", "implicit": "midpoint"}
+#: Fewest edges across the wet interval: the wetted part must bend into an arc round the
+#: drop and carry its two contact lines on different edges; 4 edges (3 interior hinges)
+#: is half of what the coarsest preset uses (draft: 8, whose error README "What accuracy
+#: costs" measures).  Fewer is refused, not run.
+MIN_WET_EDGES = 4
+
+
 def impact_settings(scene: Scene) -> dict:
-    """Resolution, time step and stopping rule of an impact run (scene numerics/presets)."""
+    """Resolution, time step and stopping rule of an impact run (scene numerics/presets).
+
+    Raises
+    ------
+    SceneError
+        For a resolution that cannot represent the scene (fewer than MIN_WET_EDGES edges
+        across the wet interval) or a time step that cannot run it (not finite, fewer
+        than MIN_REST_STEPS steps in numerics.rest_time, or more than MAX_IMPACT_STEPS
+        steps to numerics.t_max).
+    """
     num = scene.numerics
     L = scene.rod.length
+    delta = scene.drop.wetted_length
     n = edge_count(scene)
+    n_min = math.ceil(MIN_WET_EDGES * L / delta * (1.0 - 1e-12))
+    if n < n_min:
+        raise SceneError(
+            "numerics.n_edges", n,
+            f"the wet interval Delta = {delta:.4g} spans {n * delta / L:.3g} edges; at least "
+            f"{MIN_WET_EDGES} are needed (n_edges >= {n_min} for L = {L:.4g}), or 0 for the "
+            "accuracy preset")
     h = L / n
     dt_max = stable_dt(np.full(n, h), scene.rod.mass_per_length, scene.rod.bending_modulus)
     if num.integrator == "implicit":
@@ -217,9 +268,11 @@ def impact_settings(scene: Scene) -> dict:
             f"above the stability bound of bending dt_max = {dt_max:.4g} for {n} edges "
             f"(h = {h:.4g}); use dt <= {dt_max:.4g} or 0 for automatic",
         )
-    scale = scene.drop.line_tension * scene.drop.wetted_length
+    _check_dt(scene, dt, n)
+    scale = scene.drop.line_tension * delta
     return {
         "integrator": num.integrator,
+        "method": METHOD[num.integrator],
         "n_edges": n,
         "dt": dt,
         "dt_max": dt_max,
@@ -229,6 +282,40 @@ def impact_settings(scene: Scene) -> dict:
     }
 
 
+#: Fewest steps within numerics.rest_time: "at rest" must rest on several samples of the
+#: kinetic energy, not one or two.
+MIN_REST_STEPS = 4
+#: Most steps of one impact run (with automatic retries at dt/2 and dt/4 on top): at the
+#: measured 5-8 us a step, 2e9 steps are 3-4 hours; a dt that needs more has underflowed.
+MAX_IMPACT_STEPS = 2 * 10**9
+
+
+def _check_dt(scene: Scene, dt: float, n: int) -> None:
+    """Refuse a time step that cannot run the impact (naming the key that set it)."""
+    num = scene.numerics
+    if num.dt:
+        key, value, origin = "numerics.dt", num.dt, ""
+    else:
+        key, value = "rod.bending_modulus", scene.rod.bending_modulus
+        origin = (f" (the automatic dt = {dt:.4g} of {n} edges, from rod.bending_modulus and "
+                  "rod.mass_per_length)")
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise SceneError(key, value, f"gives a time step dt = {dt!r}{origin}; a finite "
+                         "dt > 0 is needed: set numerics.dt")
+    if dt > num.rest_time / MIN_REST_STEPS:
+        raise SceneError(
+            key, value,
+            f"gives a time step dt = {dt:.4g}{origin}: fewer than {MIN_REST_STEPS} steps in "
+            f"numerics.rest_time = {num.rest_time:g}, over which the rest criterion reads "
+            f"the kinetic energy; dt <= {num.rest_time / MIN_REST_STEPS:.4g} is needed: set "
+            "numerics.dt")
+    if num.t_max / dt > MAX_IMPACT_STEPS:
+        raise SceneError(
+            key, value,
+            f"gives a time step dt = {dt:.4g}{origin}: {num.t_max / dt:.3g} steps to "
+            f"numerics.t_max = {num.t_max:g}, more than {MAX_IMPACT_STEPS:.0e}")
+
+
 def _wet_interval(scene: Scene) -> tuple[float, float]:
     """[S1, S2] clipped to [0, L]: the scene accepts a wet interval that ends at a rod end
     up to round-off (1e-12 L), the capillary kernel needs 0 <= S1 < S2 <= L exactly."""
@@ -236,10 +323,21 @@ def _wet_interval(scene: Scene) -> tuple[float, float]:
     return max(d.s1, 0.0), min(d.s2, L)
 
 
-def _effects(scene: Scene):
+@dataclass(frozen=True)
+class ImpactEffects:
+    """The effects of an impact run, the capillary one by name, and the drop's events."""
+
+    effects: tuple
+    capillary: Capillary
+    events: tuple
+
+
+def build_effects(scene: Scene) -> ImpactEffects:
+    """Fresh effect objects for one run (events write into their parameters)."""
     d = scene.drop
     s1, s2 = _wet_interval(scene)
-    eff = [Capillary(d.area, s1, s2, d.line_tension)]
+    cap = Capillary(d.area, s1, s2, d.line_tension)
+    eff = [cap]
     if scene.effects.gravity > 0:
         eff.append(Gravity(scene.effects.gravity))
     if scene.effects.ground:
@@ -249,13 +347,86 @@ def _effects(scene: Scene):
     events = []
     for e in d.events:
         if e.s1 is not None:
-            events.append(Event(e.time, "capillary", "s1", e.s1))
+            events.append(Event(e.time, cap.name, "s1", e.s1))
         if e.s2 is not None:
-            events.append(Event(e.time, "capillary", "s2", e.s2))
-    return eff, events
+            events.append(Event(e.time, cap.name, "s2", e.s2))
+    return ImpactEffects(tuple(eff), cap, tuple(events))
 
 
-def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
+def _initial_rod(scene: Scene, n: int) -> Rod:
+    """Straight along +x (S = 0 at x = 0), at rest, on the ground z = 0."""
+    L = scene.rod.length
+    x0 = np.zeros((n + 1, 2))
+    x0[:, 0] = np.linspace(0.0, L, n + 1)
+    return Rod(x0, np.zeros_like(x0), np.full(n, L / n), scene.rod.mass_per_length,
+               scene.rod.bending_modulus)
+
+
+@dataclass
+class _Attempt:
+    dt: float
+    sim: object
+    effects: ImpactEffects
+    rise: float
+    t_rise: float
+
+
+def _run_attempts(scene: Scene, st: dict, rod: Rod, frames, options) -> list:
+    """The runs of one impact: at the settings' dt, and, with an automatic dt, again with
+    dt halved (at most DT_RETRIES times) while a run fails or its energy rises."""
+    scale = scene.drop.line_tension * scene.drop.wetted_length
+    retries = DT_RETRIES if not scene.numerics.dt else 0
+    dt = st["dt"]
+    attempts = []
+    for _ in range(retries + 1):
+        eff = build_effects(scene)
+        sim = simulate(
+            rod,
+            eff.effects,
+            method=st["method"],
+            dt=dt,
+            t_end=st["t_max"],
+            frames=frames or min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
+            events=eff.events,
+            rest=RestCriterion(st["rest_kinetic"], st["rest_time"]),
+            **options,
+        )
+        # events fire at the first step boundary at or after their time
+        fired_at = [t for t, *_ in sim.events_fired]
+        rise, t_rise = energy_rise(sim.times, sim.energies["total"], fired_at)
+        attempts.append(_Attempt(dt, sim, eff, rise, t_rise))
+        if sim.success and rise <= ENERGY_RISE_TOL * scale:
+            break
+        dt *= 0.5
+    return attempts
+
+
+def _contact_lines_per_frame(sim, eff: ImpactEffects, s1s2) -> np.ndarray:
+    """The capillary parameters in force at each frame (events move S1, S2)."""
+    cap = eff.capillary.params.copy()
+    cap[1:3] = s1s2
+    frames = np.repeat(cap[None], len(sim.times), axis=0)
+    for t_ev, name, j, val in sim.events_fired:
+        if name == eff.capillary.name:
+            frames[np.asarray(sim.times) >= t_ev - 1e-12, j] = val
+    return frames
+
+
+def _closing_note(cap, s_nodes, final) -> str:
+    """A note on a failed run whose contact lines have nearly met (else empty)."""
+    p = [np.array([np.interp(s, s_nodes, final[:, 0]), np.interp(s, s_nodes, final[:, 1])])
+         for s in (cap[1], cap[2])]
+    d = float(np.hypot(*(p[1] - p[0])))
+    if d >= 0.05 * (cap[2] - cap[1]):
+        return ""
+    return (f" At the last frame the contact lines are {d:.3g} apart (Delta = "
+            f"{cap[2] - cap[1]:.3g}): the drop is closing inside the wrap, where the "
+            "circular-cap model is singular (chord -> 0); the outcome up to then was "
+            "encapsulation-bound. Try a smaller numerics.dt or a larger numerics.n_edges, "
+            "or read it as a closed wrap.")
+
+
+def run_impact(scene: Scene, frames: int | None = None, **options) -> ImpactResult:
     """Release the rod with the drop spread to Delta and run it to rest.
 
     Parameters
@@ -263,7 +434,10 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
     scene : Scene
     frames : int, optional
         Output frames over [0, t_max] (default: one every FRAME_SPACING time units, at most
-        MAX_FRAMES); crossings are checked on them.
+        MAX_FRAMES); crossings and the decision time are read on them.
+    **options
+        Passed to :func:`dynamics.simulate` for the scene's method
+        (``numerics.integrator``), e.g. ``jacobian_age=1`` for the midpoint method.
 
     Returns
     -------
@@ -272,145 +446,86 @@ def run_impact(scene: Scene, frames: int | None = None) -> ImpactResult:
     """
     t0 = time.perf_counter()
     st = impact_settings(scene)
-    n, L = st["n_edges"], scene.rod.length
-    effects, events = _effects(scene)
-    for ev in events:
+    for ev in scene.drop.events:
         if ev.time > st["t_max"]:
             raise SceneError("drop.events", ev.time, f"event after numerics.t_max = {st['t_max']}")
+    rod = _initial_rod(scene, st["n_edges"])
+    attempts = _run_attempts(scene, st, rod, frames, options)
     scale = scene.drop.line_tension * scene.drop.wetted_length
-    retries = DT_RETRIES if not scene.numerics.dt else 0
-    attempts = []
-    dt = st["dt"]
-    x0 = np.zeros((n + 1, 2))
-    x0[:, 0] = np.linspace(0.0, L, n + 1)
-    # the steppers copy the rod; the effects are made anew per attempt (events write into
-    # their parameters)
-    rod = Rod(
-        x0,
-        np.zeros_like(x0),
-        np.full(n, L / n),
-        scene.rod.mass_per_length,
-        scene.rod.bending_modulus,
-    )
-    for _ in range(retries + 1):
-        effects, events = _effects(scene)
-        stepper = simulate_implicit if scene.numerics.integrator == "implicit" else simulate
-        sim = stepper(
-            rod,
-            effects,
-            dt=dt,
-            t_end=st["t_max"],
-            frames=frames or min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
-            events=events,
-            rest=RestCriterion(st["rest_kinetic"], st["rest_time"]),
-        )
-        # events fire at the first step boundary at or after their time
-        fired_at = [t for t, *_ in sim.events_fired]
-        rise, t_rise = energy_rise(sim.times, sim.energies["total"], fired_at)
-        attempts.append((dt, sim, effects, rise, t_rise))
-        if sim.success and rise <= ENERGY_RISE_TOL * scale:
-            break
-        dt *= 0.5
     # the successful attempt with the smallest rise (else the last one)
-    done = [a for a in attempts if a[1].success]
-    best = min(done, key=lambda a: a[3]) if done else attempts[-1]
-    dt, sim, effects, rise, t_rise = best
-    rejected = [
-        f"dt = {a[0]:.4g}: "
-        + (a[1].message if not a[1].success else _rise_message(a[3], scale, a[4]))
-        for a in attempts
-        if a is not best
-    ]
-    st["dt"] = dt
+    done = [a for a in attempts if a.sim.success]
+    best = min(done, key=lambda a: a.rise) if done else attempts[-1]
+    st["dt"] = best.dt
     st["dt_retries"] = len(attempts) - 1
+    return _classify(scene, st, rod, best, attempts, scale, t0)
+
+
+def _classify(scene, st, rod, best, attempts, scale, t0) -> ImpactResult:
+    """Crossings, measures, the outcome (:func:`elastocap.criteria.impact_verdict`) and
+    the message of the kept attempt."""
+    sim, rise, t_rise = best.sim, best.rise, best.t_rise
     s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
     measures = turning_measures(sim.positions)
-    # crossings, frame by frame, with the contact lines in force at that time
-    cap = effects[0].params.copy()
-    cap[1:3] = _wet_interval(scene)
-    cap_frames = np.repeat(cap[None], len(sim.times), axis=0)
-    for t_ev, name, j, val in sim.events_fired:
-        if name == effects[0].name:
-            cap_frames[np.asarray(sim.times) >= t_ev - 1e-12, j] = val
+    cap_frames = _contact_lines_per_frame(sim, best.effects, _wet_interval(scene))
     k_rod, k_if = first_crossing_frames(sim.positions, s_nodes, cap_frames)
     rod_t = float(sim.times[k_rod]) if k_rod >= 0 else None
     if_t = float(sim.times[k_if]) if k_if >= 0 else None
-    cap = cap_frames[-1]
     final = sim.positions[-1]
-    M = float(measures[-1])
-    impact_s = scene.drop.center
-    x_end = float(final[-1, 0])
-    x_imp = float(np.interp(impact_s, s_nodes, final[:, 0]))
-    if scene.effects.gravity > 0 or scene.effects.ground:
-        criterion = "paper (Methods): x(L) < x(L - x_impact) in the lab frame"
-        enc = x_end < x_imp
-    else:
-        criterion = "free rod: measure (theta(L) - theta(0))/pi > 1"
-        enc = M > 1.0
-    t_end = float(sim.t_final)
-    crossed = [t for t in (rod_t, if_t) if t is not None]
-    outcome = "encapsulated" if enc else "open"
-    message = sim.message
-    status = sim.status
-    unstable = sim.success and rise > ENERGY_RISE_FAIL * scale
-    if sim.success and rise > ENERGY_RISE_TOL * scale:
-        message += (
-            " WARNING: "
-            + _rise_message(rise, scale, t_rise)
-            + (f" Try a smaller numerics.dt (this run: {st['dt']:.4g}).")
-        )
+    criterion, enc, _q = frame_verdicts(scene, sim.positions, s_nodes, measures)
+    rise_ok = rise <= ENERGY_RISE_TOL * scale
+    verdict = impact_verdict(
+        criterion=criterion,
+        encapsulated=enc,
+        times=sim.times,
+        success=sim.success and rise <= ENERGY_RISE_FAIL * scale,
+        at_rest=sim.status == "at_rest",
+        t_max=st["t_max"],
+        rise_ok=rise_ok,
+        rise_note="" if rise_ok else _rise_message(rise, scale, t_rise),
+        rod_crossing_time=rod_t,
+    )
+    message, status = sim.message, sim.status
+    if sim.success and not rise_ok:
+        message += (" WARNING: " + _rise_message(rise, scale, t_rise)
+                    + f" Try a smaller numerics.dt (this run: {st['dt']:.4g}).")
+    rejected = [
+        f"dt = {a.dt:.4g}: "
+        + (a.sim.message if not a.sim.success else _rise_message(a.rise, scale, a.t_rise))
+        for a in attempts if a is not best
+    ]
     if rejected:
-        message += (
-            f" Automatic dt: {len(attempts)} attempts, this one kept; the others: "
-            + "; ".join(rejected)
-        )
-    if unstable:
-        outcome = "failed"
+        message += (f" Automatic dt: {len(attempts)} attempts, this one kept; the others: "
+                    + "; ".join(rejected))
+    if sim.success and rise > ENERGY_RISE_FAIL * scale:
         status = "energy_rise"
     elif not sim.success:
         # a failed run has no outcome: say what failed, and whether the contact lines met
-        outcome = "failed"
-        d = float(
-            np.hypot(
-                *(
-                    np.array(
-                        [
-                            np.interp(cap[2], s_nodes, final[:, 0]),
-                            np.interp(cap[2], s_nodes, final[:, 1]),
-                        ]
-                    )
-                    - np.array(
-                        [
-                            np.interp(cap[1], s_nodes, final[:, 0]),
-                            np.interp(cap[1], s_nodes, final[:, 1]),
-                        ]
-                    )
-                )
-            )
-        )
-        if d < 0.05 * (cap[2] - cap[1]):
-            message += (
-                f" At the last frame the contact lines are {d:.3g} apart (Delta = "
-                f"{cap[2] - cap[1]:.3g}): the drop is closing inside the wrap, where "
-                "the circular-cap model is singular (chord -> 0); the outcome up to "
-                "then was encapsulation-bound. Try a smaller numerics.dt or a larger "
-                "numerics.n_edges, or read it as a closed wrap."
-            )
+        message += _closing_note(cap_frames[-1], s_nodes, final)
+    if verdict.reason:
+        message += f" Outcome undecided: {verdict.reason}."
+    crossed = [t for t in (rod_t, if_t) if t is not None]
+    decided_after = (bool(crossed) and verdict.decision_time is not None
+                     and verdict.decision_time >= min(crossed))
     return ImpactResult(
-        outcome=outcome,
+        outcome=verdict.outcome,
         criterion=criterion,
-        final_measure=M,
-        t_end=t_end,
+        final_measure=float(measures[-1]),
+        t_end=float(sim.t_final),
         steps=int(sim.steps),
         wall_time_s=time.perf_counter() - t0,
         status=status,
         message=message,
-        end_position=x_end,
-        impact_position=x_imp,
+        end_position=float(final[-1, 0]),
+        impact_position=float(np.interp(scene.drop.center, s_nodes, final[:, 0])),
         rod_crossing_time=rod_t,
         interface_crossing_time=if_t,
-        decided_after_crossing=bool(crossed) and min(crossed) <= t_end,
+        decided_after_crossing=bool(decided_after),
         energy_rise=rise / scale,
+        at_rest=verdict.at_rest,
+        decision_time=verdict.decision_time,
+        undecided_reason=verdict.reason,
+        compile_time_s=float(sim.stats["compile_time"]),
+        run_time_s=float(sim.stats["run_time"]),
         settings={
             **st,
             "scene": scene.name,

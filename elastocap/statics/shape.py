@@ -14,8 +14,13 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from elastocap.geometry import (  # noqa: F401  (arc_points, count_crossings: re-exported)
+    arc_points,
+    count_crossings,
+    encapsulation_measure,
+)
 
 __all__ = [
     "arc_points",
@@ -28,38 +33,6 @@ __all__ = [
 # Points used to draw and to check crossings: 160 on the wet part resolve the crossing
 # location to ~1% of Delta, which is what a flag needs (it is not used in any equation).
 _N_WET_SAMPLES = 160
-_N_ARC_SAMPLES = 120
-
-
-def encapsulation_measure(theta_first: float, theta_last: float) -> float:
-    """M = (theta(L) - theta(0)) / pi from the end tangent angles (radians)."""
-    return (theta_last - theta_first) / math.pi
-
-
-def arc_points(x1, x2, tau, n=_N_ARC_SAMPLES):
-    """Points of the drop interface from x1 to x2, shape (n, 2).
-
-    The arc bulges to the left of x1 -> x2 (the +q side) for tau > 0, with half-angle tau.
-    Written without the radius so that a flat interface (tau -> 0) needs no special case.
-    """
-    x1 = np.asarray(x1, float)
-    x2 = np.asarray(x2, float)
-    chord = x2 - x1
-    d = float(np.hypot(*chord))
-    mid = 0.5 * (x1 + x2)
-    if d == 0.0:
-        return np.repeat(mid[None], n, axis=0)
-    c = chord / d
-    nrm = np.array([-c[1], c[0]])
-    v = np.linspace(-1.0, 1.0, n)
-    st = math.sin(tau)
-    if abs(tau) < 1e-8:
-        along = v
-        across = 0.5 * tau * (1.0 - v * v)
-    else:
-        along = np.sin(tau * v) / st
-        across = (np.cos(tau * v) - math.cos(tau)) / st
-    return mid + 0.5 * d * (along[:, None] * c + across[:, None] * nrm)
 
 
 def full_shape(problem, u, p=None, n_wet=_N_WET_SAMPLES):
@@ -94,41 +67,6 @@ def full_shape(problem, u, p=None, n_wet=_N_WET_SAMPLES):
     s = np.concatenate(s_parts)
     iface = arc_points(wet[0], wet[-1], S.tau)
     return {"rod": rod, "s": s, "interface": iface}
-
-
-@numba.njit(cache=True)
-def segments_cross(ax, az, rx, rz, bx, bz, sx, sz):
-    """Do the segments a + t r and b + u s (0 < t, u < 1) cross properly?
-
-    Touching end points (t or u within 1e-9 of 0 or 1) and parallel segments do not count.
-    """
-    den = rx * sz - rz * sx
-    if den == 0.0:
-        return False
-    qx, qz = bx - ax, bz - az
-    t = (qx * sz - qz * sx) / den
-    u = (qx * rz - qz * rx) / den
-    return 1e-9 < t < 1.0 - 1e-9 and 1e-9 < u < 1.0 - 1e-9
-
-
-@numba.njit(cache=True)
-def count_crossings(a, b, same, skip_a0, skip_a1):
-    """Proper crossings of the segments of polyline a (m, 2) with those of b (k, 2).
-
-    With ``same`` (a is b) adjacent segments are not tested; segments of a with index below
-    ``skip_a0`` or from ``skip_a1`` on are skipped (e.g. the ends of an interface that start
-    on the rod). Touching end points (within 1e-9 of a segment's length) do not count.
-    """
-    count = 0
-    for i in range(max(skip_a0, 0), min(a.shape[0] - 1, skip_a1)):
-        ax, az = a[i, 0], a[i, 1]
-        rx, rz = a[i + 1, 0] - ax, a[i + 1, 1] - az
-        j0 = i + 2 if same else 0
-        for j in range(j0, b.shape[0] - 1):
-            bx, bz = b[j, 0], b[j, 1]
-            if segments_cross(ax, az, rx, rz, bx, bz, b[j + 1, 0] - bx, b[j + 1, 1] - bz):
-                count += 1
-    return count
 
 
 def measures(problem, u, p=None) -> dict[str, float]:

@@ -20,7 +20,7 @@ def rod_from_angles(theta, h, origin=(0.0, 0.0), mu=1.0, B=1.0, v=None):
 
 def band_to_dense(ab, kl, ku):
     """Dense (N, N) matrix of LAPACK-style band storage ``ab`` (N, 2 kl + ku + 1), row r
-    holding A[r, c] at column c - r + kl (as dynamics.implicit stores its KKT matrix)."""
+    holding A[r, c] at column c - r + kl (as dynamics.midpoint stores its KKT matrix)."""
     N = ab.shape[0]
     A = np.zeros((N, N))
     for r in range(N):
@@ -37,3 +37,8 @@ def dense_to_band(A, kl, ku):
         for c in range(max(0, r - kl), min(N, r + ku + 1)):
             ab[r, c - r + kl] = A[r, c]
     return ab
+
+
+def simulate_midpoint(rod, effects=(), **kwargs):
+    """``dynamics.simulate`` with the midpoint method."""
+    return dynamics.simulate(rod, effects, method="midpoint", **kwargs)

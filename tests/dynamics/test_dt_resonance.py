@@ -1,6 +1,6 @@
 """The nonlinear stability limit of the RATTLE step: the 4:1 resonance of Stormer-Verlet.
 
-Linear analysis bounds the step by omega_max dt < 2 (``dynamics.stepper.DT_BOUND_C``), but
+Linear analysis bounds the step by omega_max dt < 2 (``dynamics.DT_BOUND_C``), but
 with large-amplitude grid-scale motion (what a rod slapping the ground or a violent impact
 excites) the nonlinear coupling of the highest mode with itself resonates where the
 Verlet map turns that mode by a quarter period a step: cos(theta) = 1 - (omega dt)**2 / 2
@@ -15,9 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from dynamics import Ground, Rod, simulate
+from dynamics import DT_BOUND_C, Ground, Rod, simulate, stable_dt
 from dynamics.effects import Gravity
-from dynamics.stepper import DT_BOUND_C, stable_dt
 from elastocap.impact import DT_FRACTION_GROUND
 
 N_EDGES, LENGTH = 100, 10.0

@@ -82,7 +82,8 @@ def test_world_writable_directory_is_refused_without_fallback(tmp_path, monkeypa
     shared.mkdir()
     os.chmod(shared, 0o777)
     monkeypatch.setenv(cache.ENV_VAR, str(shared))
-    with pytest.raises(cache.CacheError, match=r"shared: writable by group or others \(mode 0777\)"):
+    with pytest.raises(cache.CacheError,
+                       match=r"shared: writable by group or others \(mode 0777\)"):
         cache.cache_dir()
 
 

@@ -224,7 +224,7 @@ def test_violent_landing_retries_rejected_steps_with_substeps():
     dt = dynamics.stable_dt(rod.edge_len, 1.0, 1.0)
     r = simulate(rod, (Gravity(1.0), Ground(), Damping(0.05)), dt=dt, t_end=20.0, frames=21)
     assert r.success, r.message
-    assert r.rejected_steps > 0 and 1 <= r.max_halvings <= 4
+    assert r.stats["rejected_steps"] > 0 and 1 <= r.stats["max_halvings"] <= 4
     assert "rejected step(s)" in r.message
     assert r.positions[:, :, 1].min() >= 0.0
-    assert r.constraint_error_max < 1e-12
+    assert r.stats["constraint_error"] < 1e-12

@@ -4,18 +4,18 @@ Newton matrix against finite differences, and what it does to the Newton iterati
 
 import numpy as np
 import pytest
-from dyn_helpers import band_to_dense, dense_to_band
+from dyn_helpers import band_to_dense, dense_to_band, simulate_midpoint
 from dyn_stiff_kernels import BadTether, NodeSpring, Tether
 
-from dynamics import Damping, Gravity, Rod, stable_dt
-from dynamics.implicit import (
+from dynamics import Damping, Gravity, RestCriterion, Rod, stable_dt
+from dynamics.midpoint import (
     KL,
     band_backward,
     band_forward,
     band_lu,
     band_lu_nopivot,
     bending_hessian_add,
-    compile_implicit,
+    compile_stepper,
     contact_lowrank,
     contact_rows_save,
     ground_rows_matrix,
@@ -23,10 +23,8 @@ from dynamics.implicit import (
     kkt_residual,
     lowrank_correct,
     lowrank_setup,
-    simulate_implicit,
     stiffness_band_add,
 )
-from dynamics.stepper import RestCriterion
 from elastocap.capillary import Capillary, capillary_kernel
 from elastocap.capillary_hessian import capillary_stiffness, stiffness_dense
 from elastocap.strip.model import capillary_hessian_nodes
@@ -303,7 +301,7 @@ def test_newton_matrix_with_the_drop_is_the_jacobian_of_the_residual():
     # gamma = 10 and dt = 0.1: the rank-5 part would slow the simplified Newton to a rate
     # of 0.46 without it (above LOWRANK_MIN_RATE, so the stepper uses it)
     cap = Capillary(1.5, 1.0, 3.6, 10.0)
-    mod = compile_implicit((cap,))
+    mod = compile_stepper((cap,))
     assert mod.HAS_STIFFNESS
     n = rod.n_nodes
     N = 3 * n - 1
@@ -368,8 +366,8 @@ def test_newton_matrix_with_the_drop_is_the_jacobian_of_the_residual():
 
 
 def test_an_effect_without_the_hook_costs_nothing():
-    assert not compile_implicit((Gravity(), Damping(0.1))).HAS_STIFFNESS
-    assert compile_implicit((Capillary(1.0, 1.0, 2.0, 1.0), Gravity())).HAS_STIFFNESS
+    assert not compile_stepper((Gravity(), Damping(0.1))).HAS_STIFFNESS
+    assert compile_stepper((Capillary(1.0, 1.0, 2.0, 1.0), Gravity())).HAS_STIFFNESS
 
 
 def test_hooks_compose_and_the_converged_steps_do_not_depend_on_them():
@@ -378,16 +376,16 @@ def test_hooks_compose_and_the_converged_steps_do_not_depend_on_them():
     to the same steps (the converged solution does not depend on the Newton matrix)."""
     rod = Rod.straight(30, 3.0)
     rod.v[:, 1] = 0.5 * np.sin(3 * np.pi * np.linspace(0.0, 1.0, 31))
-    runs = [simulate_implicit(rod, (Tether(3, 25, 300.0, hook=h), NodeSpring(10, 5.0)),
+    runs = [simulate_midpoint(rod, (Tether(3, 25, 300.0, hook=h), NodeSpring(10, 5.0)),
                               dt=0.02, t_end=2.0, frames=21, stiffness=h)
             for h in (True, False)]
     on, off = runs
     assert on.success and off.success
-    assert on.rejected_steps == off.rejected_steps == 0
+    assert on.stats["rejected_steps"] == off.stats["rejected_steps"] == 0
     # Newton's linear rate without the tether's stiffness is ~ dt**2 k / (4 m) = 0.3;
     # measured 7.06 iterations a step with it, 16.24 without
-    assert on.shake_iterations_mean < 7.5
-    assert off.shake_iterations_mean > 2 * on.shake_iterations_mean
+    assert on.stats["iterations_mean"] < 7.5
+    assert off.stats["iterations_mean"] > 2 * on.stats["iterations_mean"]
     # 100 steps each converged to 1e-13 h (h = 0.1): measured 4.5e-13
     assert np.abs(on.positions - off.positions).max() < 1e-11
     np.testing.assert_allclose(on.energies["total"], off.energies["total"], rtol=0,
@@ -398,7 +396,7 @@ def test_a_hook_breaking_the_protocol_is_refused_by_message():
     rod = Rod.straight(10, 1.0)
     rod.v[:, 1] = np.linspace(-0.1, 0.1, 11)  # a rotation: the first step needs Newton
     with pytest.raises(ValueError, match="a stiffness hook returned a rank outside"):
-        simulate_implicit(rod, (BadTether(1, 8, 1.0),), dt=0.01, t_end=0.02)
+        simulate_midpoint(rod, (BadTether(1, 8, 1.0),), dt=0.01, t_end=0.02)
 
 
 # ----------------------------------------------------------------------------- impacts
@@ -410,5 +408,5 @@ def _supp_fig5(delta, k, stiffness, n=100, L=4.6):
     rod = Rod(x0, np.zeros_like(x0), np.full(n, L / n), 1.0, 1.0)
     effects = (Capillary(1.5, L / 2 - delta / 2, L / 2 + delta / 2, 1.0), Damping(0.2))
     dt = k * stable_dt(rod.edge_len, 1.0, 1.0)
-    return simulate_implicit(rod, effects, dt=dt, t_end=200.0, frames=401,
+    return simulate_midpoint(rod, effects, dt=dt, t_end=200.0, frames=401,
                              rest=RestCriterion(1e-6 * delta, 1.0), stiffness=stiffness)

@@ -77,7 +77,10 @@ def test_rod_resting_on_the_ground_for_a_long_time():
 def test_strip_scene_with_ground_comes_to_rest_above_the_ground():
     scene = load_scene("fig3-strip", {"numerics.accuracy": "draft", "numerics.t_max": 20.0})
     r = run_impact(scene)
-    assert r.outcome in ("open", "encapsulated") and r.status in ("at_rest", "completed")
+    assert r.status in ("at_rest", "completed")
+    # an outcome only for a run that came to rest
+    assert r.outcome == ("undecided" if r.status == "completed" else r.outcome)
+    assert r.outcome in ("open", "encapsulated", "undecided")
     pos = r.simulation.positions
     assert np.all(np.isfinite(pos)) and pos[:, :, 1].min() >= -1e-12
 

@@ -3,8 +3,7 @@ gradient of gamma lambda), the secondary-drop event, and consistency with the st
 
 import numpy as np
 
-from dynamics import Event, Rod, simulate
-from dynamics.stepper import stable_dt
+from dynamics import Event, Rod, simulate, stable_dt
 from elastocap.capillary import Capillary
 from elastocap.scene import load_scene
 from elastocap.statics.branches import newton, problem_for
@@ -60,8 +59,7 @@ def test_damped_run_settles_on_the_static_equilibrium():
     for n in levels:
         rod = _straight(n, 4.6)
         dt = 0.5 * stable_dt(rod.edge_len, 1.0, 1.0)
-        from dynamics import Damping
-        from dynamics.stepper import RestCriterion
+        from dynamics import Damping, RestCriterion
 
         res = simulate(
             rod,

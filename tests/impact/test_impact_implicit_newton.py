@@ -2,22 +2,18 @@
 stiffness in the Newton matrix (the ``stiffness`` hook of elastocap.capillary.Capillary):
 fewer iterations, the same converged steps."""
 
-import functools
-
 import numpy as np
 import pytest
 
-from dynamics.implicit import NEWTON_TOL_X, simulate_implicit
+from dynamics.midpoint import NEWTON_TOL_X
 from elastocap import impact
 from elastocap.scene import load_scene
 
 
-def _run(monkeypatch, scene, overrides, dt_multiple, stiffness):
-    monkeypatch.setattr(impact, "simulate_implicit",
-                        functools.partial(simulate_implicit, stiffness=stiffness))
+def _run(scene, overrides, dt_multiple, stiffness):
     ov = dict(overrides, **{"numerics.integrator": "implicit"})
     ov["numerics.dt"] = dt_multiple * impact.impact_settings(load_scene(scene, ov))["dt_max"]
-    return impact.run_impact(load_scene(scene, ov))
+    return impact.run_impact(load_scene(scene, ov), stiffness=stiffness)
 
 
 # (scene, overrides, dt / dt_max, measured mean iterations a step with / without the drop's
@@ -30,20 +26,21 @@ CASES = [
 
 
 @pytest.mark.parametrize("scene, overrides, k, it_on, it_off", CASES)
-def test_drop_stiffness_cuts_newton_iterations_not_the_solution(monkeypatch, scene, overrides,
-                                                                 k, it_on, it_off):
-    on = _run(monkeypatch, scene, overrides, k, True)
-    off = _run(monkeypatch, scene, overrides, k, False)
+def test_drop_stiffness_cuts_newton_iterations_not_the_solution(scene, overrides, k, it_on,
+                                                                 it_off):
+    on = _run(scene, overrides, k, True)
+    off = _run(scene, overrides, k, False)
     s_on, s_off = on.simulation, off.simulation
     assert s_on.success and s_off.success
-    assert s_on.steps == s_off.steps and s_on.rejected_steps == s_off.rejected_steps == 0
+    assert s_on.steps == s_off.steps
+    assert s_on.stats["rejected_steps"] == s_off.stats["rejected_steps"] == 0
     # the low-rank part was used: the drop's missing stiffness would slow the simplified
     # Newton to a rate above LOWRANK_MIN_RATE at these steps
-    assert s_on.stiffness_lowrank > 0 and s_off.stiffness_lowrank == 0
+    assert s_on.stats["stiffness_lowrank"] > 0 and s_off.stats["stiffness_lowrank"] == 0
     # deterministic counts (the same machine code every run); 0.3 leaves room for another
     # compiler's round-off to tip a step's count by one now and then
-    assert s_on.shake_iterations_mean == pytest.approx(it_on, abs=0.3)
-    assert s_off.shake_iterations_mean == pytest.approx(it_off, abs=0.3)
+    assert s_on.stats["iterations_mean"] == pytest.approx(it_on, abs=0.3)
+    assert s_off.stats["iterations_mean"] == pytest.approx(it_off, abs=0.3)
     # the converged steps do not depend on the Newton matrix: each step is solved to
     # NEWTON_TOL_X h (7e-15 on fig3-strip, 5e-15 on supp-fig5), which the contact and
     # capillary dynamics amplify over the run; measured 1.0e-10 and 1.2e-11

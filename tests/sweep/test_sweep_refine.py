@@ -253,7 +253,7 @@ def test_code_fingerprint_covers_the_impact_code_only():
     names = set(code_files())
     # the impact, its drop and capillary model, the stepper, the criteria, the scene
     assert {"elastocap.impact", "elastocap.capillary", "elastocap.drop", "elastocap.criteria",
-            "elastocap.scene", "dynamics", "dynamics.stepper", "dynamics.effects"} <= names
+            "elastocap.scene", "dynamics", "dynamics.rattle", "dynamics.effects"} <= names
     assert not {n for n in names if n.startswith("elastocap.sweep") or n == "elastocap.cli"}
     assert code_fingerprint() == code_fingerprint()
     assert code_fingerprint(("elastocap.units",)) != code_fingerprint(("elastocap.drop",))

@@ -1,8 +1,9 @@
-"""Constrained implicit-midpoint stepper: a time step set by accuracy, not by bending.
+"""The midpoint method of :func:`dynamics.simulate` (``method="midpoint"``): the
+constrained implicit midpoint rule, a time step set by accuracy, not by bending.
 
 Why
 ---
-The explicit RATTLE stepper (:mod:`dynamics.stepper`) is stable only for
+The explicit RATTLE method (:mod:`dynamics.rattle`) is stable only for
 ``dt <= 0.45 h**2 sqrt(mu/B)``: the shortest bending wave sets the step and the cost of a
 run grows as ``N**3``.  Here the bending force is implicit, so the step is limited only by
 the accuracy wanted on the motion that matters (the slow modes, the capillary dynamics).
@@ -76,7 +77,8 @@ refactored: a third fewer factorisations on fig3-strip and on a dropped rod (mea
 A held node ends the step at ``z0`` with zero vertical velocity: the landing is perfectly
 inelastic (the midpoint rule alone would give ``v1 = -v0``, a bounce), a resting rod has
 no jitter, and the contact forces do no positive work (``D_z <= 0`` where they push).
-Other constraint effects (:class:`~dynamics.Clamp`) are refused by name.
+A ground is recognised by the effect protocol (``ground_height_param``, see
+:mod:`dynamics.effects`); other constraint effects (:class:`~dynamics.Clamp`) are refused.
 
 References: Hairer, Lubich & Wanner, "Geometric Numerical Integration" (2006), sec. VII.1
 (constrained mechanical systems), sec. V.4 and VI.3 (midpoint rule); Newmark (1959);
@@ -86,27 +88,19 @@ quadratic-constraint argument.
 
 from __future__ import annotations
 
-import time
 from types import SimpleNamespace
 
 import numba
 import numpy as np
 
+from .cache import dependency_digest, is_compiled, load_module
+from .codegen import kernel_ref, render, stepper_depends
 from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK
-from .cache import dependency_digest, load_module
-from .stepper import (
-    _STATUS,
-    _depends,
-    _kernel_ref,
-    _result,
-    _schedule,
-    _validate_run,
-    stable_dt,
-)
+from .rattle import stable_dt
 
 __all__ = [
-    "simulate_implicit",
-    "compile_implicit",
+    "Run",
+    "compile_stepper",
     "band_lu",
     "band_solve",
     "band_lu_nopivot",
@@ -235,10 +229,7 @@ LOWRANK_MIN_RATE = 0.1
 CONTACT_RANK = 8
 
 #: (module, kernel) of the one constraint effect the implicit stepper handles.
-_GROUND_REF = ("dynamics.effects", "ground_kernel")
 
-_STATUS_IMPLICIT = dict(_STATUS)
-_STATUS_IMPLICIT[2] = ("newton_failed", "the implicit step's Newton iteration did not converge")
 
 
 # ----------------------------------------------------------------------------- banded LU
@@ -1126,11 +1117,23 @@ def lowrank_correct(t, k, start, G, H, S, spiv, tv):
 
 # ----------------------------------------------------------------------------- codegen
 
-#: Body of the generated module: the effect-specific ``_forces`` and ``_damp`` are
-#: prepended; ``PARGS`` / ``FARGS`` are replaced by the effects' parameter arrays (all of
-#: them / the force effects').  Generated (not a generic loop over first-class
-#: functions) for the same reason as :mod:`dynamics.stepper`: numba caches it on disk.
+#: Body of the generated module (:func:`dynamics.codegen.render`): the dispatch functions
+#: of the effects (``_external_forces``, ``_damp``, ``_stiffness``, ``_ground_height``) and
+#: the flags are generated before it; ``$pargs`` / ``$fargs`` stand for the effects'
+#: parameter arrays (all of them / the force effects').  Generated (not a generic loop over
+#: first-class functions) for the same reason as :mod:`dynamics.rattle`: numba caches it
+#: on disk.
 _TEMPLATE = '''
+
+@numba.njit(cache=True)
+def _forces(x, v, t, edge_len, mass, B, F, energy$fargs):
+    for i in range(x.shape[0]):
+        F[i, 0] = 0.0
+        F[i, 1] = 0.0
+    energy[0] = bending_force_add(x, edge_len, B, F)
+    _external_forces(x, v, t, edge_len, mass, F, energy$fargs)
+
+
 @numba.njit(cache=True)
 def _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, lr, stiff):
     kkt_assemble(x0, d, xm, mu, winv, edge_len, ab)
@@ -1145,7 +1148,7 @@ def _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, lr, stiff):
 
 @numba.njit(cache=True)
 def _jacobian(x0, d, xm, vm, t, mu, winv, edge_len, mass, B, dt, ab, piv, held, lr,
-              stiff FARGS):
+              stiff$fargs):
     K = lr[0]
     k = 0
     lr[7][0] = 0
@@ -1156,7 +1159,7 @@ def _jacobian(x0, d, xm, vm, t, mu, winv, edge_len, mass, B, dt, ab, piv, held, 
             K[:, :, :, :] = 0.0
             lr[1][:, :, :] = 0.0
             lr[2][:, :] = 0.0
-            k = _stiffness(xm, vm, t, edge_len, mass, K, lr[1], lr[2] FARGS)
+            k = _stiffness(xm, vm, t, edge_len, mass, K, lr[1], lr[2]$fargs)
     _assemble(x0, d, xm, mu, winv, edge_len, B, dt, ab, held, lr, stiff)
     # no pivoting unless a pivot is tiny (see band_lu_nopivot)
     res = 0
@@ -1200,7 +1203,7 @@ def _solve(ab, piv, rhs, lr):
 
 @numba.njit(cache=True)
 def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, diag,
-          opts, lr PARGS):
+          opts, lr$pargs):
     n = x.shape[0]
     x0 = ws[0]
     v0 = ws[1]
@@ -1224,8 +1227,8 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
     refresh_move = opts[7]
     # contact changes by a low-rank update of the factored matrix (else: refactor)
     cupd = opts[8] != 0.0
-    z0 = _z0(t PARGS)
-    _damp(x, v, t, edge_len, mass, half PARGS)
+    z0 = _ground_height(t$pargs)
+    _damp(x, v, t, edge_len, mass, half$pargs)
     for i in range(n):
         for k in range(2):
             x0[i, k] = x[i, k]
@@ -1259,7 +1262,7 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
             if not midpoint_ok(xm, edge_len):
                 rmax = np.inf
                 break
-            _forces(xm, vm, t + half, edge_len, mass, B, F, energy FARGS)
+            _forces(xm, vm, t + half, edge_len, mass, B, F, energy$fargs)
             rmax, cmax = kkt_residual(x0, v0, d, xm, F, mu, winv, edge_len, dt, rhs)
             if HAS_GROUND:
                 rmax = ground_rows_residual(x0, d, held, z0, rhs, wnu)
@@ -1292,7 +1295,7 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
             if diag[8] >= max_age or (theta > refresh_rate
                                       and (not refreshed or moved > refresh_move * h_min)):
                 info = _jacobian(x0, d, xm, vm, t + half, mu, winv, edge_len, mass, B, dt,
-                                 ab, piv, held, lr, stiff FARGS)
+                                 ab, piv, held, lr, stiff$fargs)
                 diag[10] += 1
                 if info == 1:
                     diag[1] += 1
@@ -1359,13 +1362,13 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
                 x[i, 1] = z0
                 v[i, 1] = 0.0
                 acc[i, 1] = 0.0
-    _damp(x, v, t + half, edge_len, mass, half PARGS)
+    _damp(x, v, t + half, edge_len, mass, half$pargs)
     return it
 
 
 @numba.njit(cache=True)
 def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy,
-        diag, rest, opts, lr PARGS):
+        diag, rest, opts, lr$pargs):
     n = x.shape[0]
     acc = ws[5]
     xb = ws[10]
@@ -1384,7 +1387,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
         mub[:] = mu
         hb[:] = held
         st = _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, diag,
-                   opts, lr PARGS)
+                   opts, lr$pargs)
         if st < 0:
             # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps
             for level in range(1, MAX_HALVINGS + 1):
@@ -1398,7 +1401,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
                 h = dt / sub
                 for j in range(sub):
                     st = _step(x, v, t + j * h, h, edge_len, mass, winv, B, ws, mu, ab, piv,
-                               rhs, energy, diag, opts, lr PARGS)
+                               rhs, energy, diag, opts, lr$pargs)
                     if st < 0:
                         break
                 if st >= 0:
@@ -1445,82 +1448,23 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
 '''
 
 
+#: The method's own imports in its generated module.
+_IMPORTS = """\
+from dynamics.bending import bending_force_add
+from dynamics.constraints import constraint_error
+from dynamics.midpoint import (FINAL_C, KL, LOWRANK_MIN_RATE, MAX_CONTACT_ROUNDS, MAX_HALVINGS,
+                               band_backward, band_forward, band_lu, band_lu_nopivot,
+                               bending_hessian_add, contact_lowrank, contact_rows_save,
+                               ground_rows_matrix, ground_rows_residual, ground_update,
+                               kkt_assemble, kkt_residual, kkt_update, lowrank_correct,
+                               lowrank_rate, lowrank_setup, midpoint_ok, stiffness_band_add)
+"""
+
+
 def _generate_source(refs):
-    """Source of an implicit stepper module for ``refs = [(kind, module, name, stiffness),
-    ...]``, ``stiffness`` the (module, name) of a force effect's stiffness hook or None."""
-    imports, P, forces, damps, ground, stiff = [], [], [], [], [], []
-    for j, (kind, mod, name, hook) in enumerate(refs):
-        alias = f"_k{j}"
-        P.append(f"p{j}")
-        if kind == "force":
-            imports.append(f"from {mod} import {name} as {alias}")
-            forces.append((alias, f"p{j}"))
-            if hook is not None:
-                imports.append(f"from {hook[0]} import {hook[1]} as _s{j}")
-                stiff.append((f"_s{j}", f"p{j}"))
-        elif kind == "damping":
-            imports.append(f"from {mod} import {name} as {alias}")
-            damps.append((alias, f"p{j}"))
-        elif (mod, name) == _GROUND_REF and not ground:
-            # the ground is not called as a kernel: its height constraint enters the
-            # Newton system (ground_rows_residual / ground_rows_matrix)
-            ground.append(f"p{j}")
-        else:
-            raise ValueError(f"constraint effects other than one ground are not supported "
-                             f"by the implicit stepper (got {mod}.{name})")
-    pargs = "".join(", " + p for p in P)
-    fargs = "".join(", " + p for _, p in forces)
-    L = ["# Generated by dynamics.implicit: an implicit-midpoint stepper for its effects.",
-         "# Do not edit; the file name is a hash of this text and of the kernels' sources.",
-         "import numba",
-         "import numpy as np",
-         "from dynamics.bending import bending_force_add",
-         "from dynamics.constraints import constraint_error",
-         "from dynamics.implicit import (FINAL_C, KL, MAX_CONTACT_ROUNDS, MAX_HALVINGS,",
-         "                               LOWRANK_MIN_RATE, STIFFNESS_RANK,",
-         "                               band_backward, band_forward, band_lu,",
-         "                               band_lu_nopivot,",
-         "                               bending_hessian_add, ground_rows_matrix,",
-         "                               ground_rows_residual, ground_update, kkt_assemble,",
-         "                               kkt_residual, kkt_update, lowrank_correct,",
-         "                               lowrank_rate, lowrank_setup, midpoint_ok,",
-         "                               stiffness_band_add, contact_lowrank,",
-         "                               contact_rows_save)",
-         *imports, "",
-         f"HAS_GROUND = {bool(ground)}",
-         f"HAS_STIFFNESS = {bool(stiff)}", "", "",
-         "@numba.njit(cache=True)",
-         f"def _z0(t{''.join(', ' + p for p in P)}):",
-         f"    return {ground[0] + '[0]' if ground else '0.0'}",
-         "", "",
-         "@numba.njit(cache=True)",
-         f"def _forces(x, v, t, edge_len, mass, B, F, energy{fargs}):",
-         "    for i in range(x.shape[0]):",
-         "        F[i, 0] = 0.0",
-         "        F[i, 1] = 0.0",
-         "    energy[0] = bending_force_add(x, edge_len, B, F)"]
-    for k, (alias, p) in enumerate(forces):
-        L.append(f"    energy[{k + 1}] = {alias}(x, v, t, {p}, edge_len, mass, F)")
-    # the stiffness hooks write their low-rank parts into consecutive blocks of U and C
-    # (C block diagonal); an effect without a hook costs nothing here
-    L += ["", "", "@numba.njit(cache=True)",
-          f"def _stiffness(x, v, t, edge_len, mass, K, U, C{fargs}):",
-          "    r = 0"]
-    for alias, p in stiff:
-        L += [f"    k = {alias}(x, v, t, {p}, edge_len, mass, K, U[r:r + STIFFNESS_RANK],",
-              "                C[r:r + STIFFNESS_RANK, r:r + STIFFNESS_RANK])",
-              "    if k < 0 or k > STIFFNESS_RANK:",
-              "        raise ValueError('a stiffness hook returned a rank outside "
-              "[0, STIFFNESS_RANK]')",
-              "    r += k"]
-    L.append("    return r")
-    L += ["", "", "@numba.njit(cache=True)",
-          f"def _damp(x, v, t, edge_len, mass, h{pargs}):"]
-    for alias, p in damps:
-        L.append(f"    {alias}(x, v, t, {p}, edge_len, mass, h)")
-    L.append("    return None")
-    src = "\n".join(L) + "\n" + _TEMPLATE.replace("PARGS", pargs).replace("FARGS", fargs)
-    return src
+    """Source of a midpoint stepper module for ``refs = [(kind, module, name, stiffness,
+    ground), ...]`` (:func:`dynamics.codegen.render` of :data:`_TEMPLATE`)."""
+    return render(_TEMPLATE, refs, _IMPORTS)
 
 
 _MODULES: dict = {}
@@ -1531,11 +1475,19 @@ def _stiffness_ref(effect):
     hook = getattr(effect, "stiffness", None)
     if hook is None:
         return None
-    return _kernel_ref(SimpleNamespace(name=effect.name, kernel=hook))
+    return kernel_ref(SimpleNamespace(name=effect.name, kernel=hook))
 
 
-def compile_implicit(effects=()):
-    """Return the generated implicit stepper module for these effects.
+def is_ground(effect) -> bool:
+    """Whether a constraint effect is a frictionless rigid ground, by the effect protocol:
+    it declares ``ground_height_param``, the index of its height z0 in ``params``
+    (:class:`dynamics.Ground` does).  The midpoint method puts such a ground into its
+    Newton system instead of calling its kernel."""
+    return getattr(effect, "ground_height_param", None) is not None
+
+
+def compile_stepper(effects=()):
+    """Return the generated midpoint stepper module for these effects.
 
     Parameters
     ----------
@@ -1554,55 +1506,51 @@ def compile_implicit(effects=()):
         hook = _stiffness_ref(e) if e.kind == "force" else None
         if e.kind not in KINDS:
             raise ValueError(f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}")
-        ref = _kernel_ref(e)
+        ref = kernel_ref(e)
+        ground = e.kind == "constraint" and is_ground(e)
         if e.kind == "constraint":
-            if ref != _GROUND_REF:
+            if not ground:
                 raise ValueError(
-                    f"effect {e.name!r}: constraint effects other than the ground (a clamp, "
-                    "your own) are not supported by the implicit stepper yet; use "
-                    "dynamics.simulate (RATTLE) for this scene"
+                    f"effect {e.name!r}: constraint effects other than a ground (a clamp, "
+                    "your own without ground_height_param) are not supported by the "
+                    "midpoint method; use method='rattle' for this scene"
                 )
+            if int(e.ground_height_param) != 0:
+                raise ValueError(f"effect {e.name!r}: the midpoint method reads the ground "
+                                 "height from params[0]; got ground_height_param = "
+                                 f"{e.ground_height_param!r}")
             grounds += 1
             if grounds > 1:
                 raise ValueError(
-                    f"effect {e.name!r}: the implicit stepper handles one ground; got "
+                    f"effect {e.name!r}: the midpoint method handles one ground; got "
                     f"{grounds} ground effects"
                 )
-        refs.append((e.kind, *ref, hook))
+        refs.append((e.kind, *ref, hook, ground))
     refs = tuple(refs)
     if refs in _MODULES:
         return _MODULES[refs]
     files = [r[:3] for r in refs] + [("force", *r[3]) for r in refs if r[3] is not None]
     module = load_module("midpoint", _generate_source(refs),
-                         _depends(files) + dependency_digest(["dynamics.implicit"]))
+                         stepper_depends(files) + dependency_digest(["dynamics.midpoint"]))
     _MODULES[refs] = module
     return module
 
 
-# ----------------------------------------------------------------------------- simulate
+#: Cold compile time of a midpoint stepper, measured on 2 shared cores (about 25 s with
+#: a drop, a ground and damping): the estimate the driver announces before a first compile.
+COMPILE_BASE_S = 15.0
+COMPILE_PER_EFFECT_S = 3.0
 
 
-def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), rest=None,
-                      t0=0.0, jacobian_age=JACOBIAN_AGE, tol_x=NEWTON_TOL_X, tol_c=NEWTON_TOL_C,
-                      stiffness=True, contact_updates=True):
-    """Integrate an inextensible planar rod with the constrained implicit midpoint rule.
+class Run:
+    """A midpoint run in progress (the method protocol of :mod:`dynamics.driver`).
 
-    Same interface and result as :func:`dynamics.simulate`, without the explicit
-    stability bound: ``dt`` may exceed :func:`dynamics.stable_dt` by any factor; it is
-    chosen for accuracy (the error is O(dt**2), frequency error ``-(omega dt)**2/12``).
+    Same effects as RATTLE except constraints (at most one ground); no explicit stability
+    bound: ``dt`` may exceed :func:`dynamics.stable_dt` by any factor, it is chosen for
+    accuracy (the error is O(dt**2), frequency error ``-(omega dt)**2/12``).
 
-    Parameters
-    ----------
-    rod : Rod
-    effects : sequence of effect objects
-        Force and damping effects, and at most one :class:`~dynamics.Ground`; other
-        constraint effects (clamp) are refused.
-    dt : float
-        Time step (time units).
-    t_end : float
-        Duration (time units).
-    frames, events, rest, t0
-        As in :func:`dynamics.simulate`.
+    Options
+    -------
     jacobian_age : int, optional
         Steps a Newton matrix factorisation is reused (1 = refactor every step); it is
         refreshed earlier whenever a Newton correction exceeds ``REFRESH_RATE`` times the
@@ -1620,160 +1568,159 @@ def simulate_implicit(rod, effects=(), *, dt, t_end, frames=None, events=(), res
         was factored by a low-rank update (:func:`contact_lowrank`); False refactors the
         matrix at every change of the held set.
 
-    Returns
-    -------
-    SimulationResult
-        ``shake_iterations_max`` / ``_mean`` report the Newton iterations per step;
-        ``status`` ``"newton_failed"`` when a step (and its substeps) did not converge.
-        ``velocities`` and ``energies["kinetic"]`` are those of the scheme's v1 (the
-        quantity it conserves), which may carry the sign-flipping mode ``(v, -v)`` of the
-        midpoint rule that does not move the rod; ``rest`` is judged on the displacement
-        rate instead.  Extra attributes: ``jacobians`` (factorisations of the Newton
-        matrix), ``pivoted_factorisations``, ``contact_rounds`` and
-        ``stiffness_dropped`` (factorisations whose low-rank stiffness part was left out,
-        its Woodbury capacitance matrix being singular).
+    ``stats`` adds ``jacobians`` (factorisations of the Newton matrix),
+    ``pivoted_factorisations``, ``stiffness_lowrank``, ``contact_updates`` and
+    ``stiffness_dropped`` (factorisations whose low-rank stiffness part was left out, its
+    Woodbury capacitance matrix being singular).  ``iterations_*`` count Newton
+    iterations a step.  The velocities and ``energies["kinetic"]`` are those of the
+    scheme's v1 (the quantity it conserves), which may carry the sign-flipping mode
+    ``(v, -v)`` of the midpoint rule that does not move the rod; ``rest`` is judged on the
+    displacement rate instead.
     """
-    dt, t_end, effects, ev = _validate_run(rod, effects, events, dt, t_end)
-    if int(jacobian_age) < 1:
-        raise ValueError(f"jacobian_age must be >= 1, got {jacobian_age!r}")
-    if rod.n_nodes < 3:
-        raise ValueError(f"the implicit stepper needs >= 2 edges, got {rod.n_nodes - 1}")
 
-    tc = time.perf_counter()
-    mod = compile_implicit(effects)
-    params = tuple(e.params for e in effects)
-    fparams = tuple(e.params for e in effects if e.kind == "force")
-    force_names = ["bending"] + [e.name for e in effects if e.kind == "force"]
+    status_names = {2: ("newton_failed",
+                        "the implicit step's Newton iteration did not converge")}
 
-    x = rod.x.copy()
-    v = rod.v.copy()
-    n = x.shape[0]
-    edge_len = rod.edge_len.copy()
-    mass = rod.mass
-    winv = np.empty((n, 2))
-    winv[:, 0] = 1.0 / mass
-    winv[:, 1] = 1.0 / mass
-    N = 3 * n - 1
-    ab = np.zeros((N, 3 * KL + 1))
-    piv = np.zeros(N, dtype=np.int64)
-    rhs = np.zeros(N)
-    mu = np.zeros(n - 1)
-    ws = np.zeros((13, n, 2))
-    energy = np.zeros(len(force_names))
-    diag = np.zeros(11)
-    rest_arr = np.zeros(3)
-    if rest is not None:
-        rest_arr[0] = rest.kinetic_energy
-        rest_arr[1] = rest.duration
-    h_min = float(edge_len.min())
-    opts = np.array([tol_x * h_min, tol_c, NEWTON_MAX_ITER, float(int(jacobian_age)),
-                     CONTACT_PULL_TOL * h_min, 1.0 if stiffness else 0.0, REFRESH_RATE,
-                     REFRESH_MOVE, 1.0 if contact_updates else 0.0])
-    # workspace of the low-rank parts of the Newton matrix: the force stiffness (K band,
-    # U, C), the Woodbury data (G, H, S, pivots), counters [stiffness rank, dropped, first
-    # row, used, contact columns, -, stiffness's first row, contact updates], scratch, and
-    # the held set and momentum rows saved at the factorisation (ground only); empty
-    # arrays when no effect has a stiffness hook and there is no ground
-    hooks = sum(1 for e in effects
-                if e.kind == "force" and getattr(e, "stiffness", None) is not None)
-    ground = [e for e in effects if e.kind == "constraint"]
-    R = STIFFNESS_RANK * hooks
-    nk = n if hooks else 0
-    # columns for the stiffness and for the rows of contact changes
-    Rt = R + (CONTACT_RANK if ground else 0)
-    ng = n if ground else 0
-    lr = (np.zeros((nk, 2, 2 * STIFFNESS_BAND + 1, 2)), np.zeros((R, nk, 2)),
-          np.zeros((R, R)), np.zeros((N, Rt)), np.zeros((N, Rt)), np.zeros((Rt, Rt)),
-          np.zeros(Rt, dtype=np.int64), np.zeros(8, dtype=np.int64), np.zeros(Rt),
-          np.zeros(ng), np.zeros((ng, 3 * KL + 1)))
-    if ground:
-        # nodes on (or below) the ground at the start are held; the first step's
-        # complementarity check releases those the ground pulls
-        ws[6][:, 0] = x[:, 1] <= ground[0].params[0]
+    def __init__(self, rod, effects, dt, t0, rest, jacobian_age=JACOBIAN_AGE,
+                 tol_x=NEWTON_TOL_X, tol_c=NEWTON_TOL_C, stiffness=True,
+                 contact_updates=True):
+        if int(jacobian_age) < 1:
+            raise ValueError(f"jacobian_age must be >= 1, got {jacobian_age!r}")
+        if rod.n_nodes < 3:
+            raise ValueError(f"the midpoint method needs >= 2 edges, got {rod.n_nodes - 1}")
+        self.dt, self.t0, self.B = dt, t0, rod.B
+        self.effects = effects
+        self.label = "+".join(e.name for e in effects) or "bending"
+        self.mod = compile_stepper(effects)
+        self.params = tuple(e.params for e in effects)
+        self.fparams = tuple(e.params for e in effects if e.kind == "force")
+        self.force_names = [e.name for e in effects if e.kind == "force"]
+        self.n_energies = 1 + len(self.force_names)
+        self.dt_max = stable_dt(rod.edge_len, rod.mu, rod.B)
+        self.x = x = rod.x.copy()
+        self.v = rod.v.copy()
+        n = x.shape[0]
+        self.edge_len = edge_len = rod.edge_len.copy()
+        self.mass = rod.mass
+        winv = np.empty((n, 2))
+        winv[:, 0] = 1.0 / self.mass
+        winv[:, 1] = 1.0 / self.mass
+        N = 3 * n - 1
+        self.energy = np.zeros(self.n_energies)
+        # diag: [0] largest constraint error, [1] pivoted factorisations, [2] most
+        # iterations, [3] iteration sum, [4] contact rounds, [5] failing residual,
+        # [6] rejected steps, [7] deepest halving, [10] factorisations
+        self.diag = np.zeros(11)
+        self.rest_arr = np.zeros(3)
+        if rest is not None:
+            self.rest_arr[0] = rest.kinetic_energy
+            self.rest_arr[1] = rest.duration
+        h_min = float(edge_len.min())
+        opts = np.array([tol_x * h_min, tol_c, NEWTON_MAX_ITER, float(int(jacobian_age)),
+                         CONTACT_PULL_TOL * h_min, 1.0 if stiffness else 0.0, REFRESH_RATE,
+                         REFRESH_MOVE, 1.0 if contact_updates else 0.0])
+        self.ws = ws = np.zeros((13, n, 2))
+        self.mu = np.zeros(n - 1)
+        # workspace of the low-rank parts of the Newton matrix: the force stiffness (K
+        # band, U, C), the Woodbury data (G, H, S, pivots), counters [stiffness rank,
+        # dropped, first row, used, contact columns, -, stiffness's first row, contact
+        # updates], scratch, and the held set and momentum rows saved at the factorisation
+        # (ground only); empty arrays when no effect has a stiffness hook and there is no
+        # ground
+        hooks = sum(1 for e in effects
+                    if e.kind == "force" and getattr(e, "stiffness", None) is not None)
+        ground = [e for e in effects if e.kind == "constraint"]
+        R = STIFFNESS_RANK * hooks
+        nk = n if hooks else 0
+        # columns for the stiffness and for the rows of contact changes
+        Rt = R + (CONTACT_RANK if ground else 0)
+        ng = n if ground else 0
+        self.lr = (np.zeros((nk, 2, 2 * STIFFNESS_BAND + 1, 2)), np.zeros((R, nk, 2)),
+                   np.zeros((R, R)), np.zeros((N, Rt)), np.zeros((N, Rt)),
+                   np.zeros((Rt, Rt)), np.zeros(Rt, dtype=np.int64),
+                   np.zeros(8, dtype=np.int64), np.zeros(Rt), np.zeros(ng),
+                   np.zeros((ng, 3 * KL + 1)))
+        self.work = (edge_len, self.mass, winv, rod.B, ws, self.mu, np.zeros((N, 3 * KL + 1)),
+                     np.zeros(N, dtype=np.int64), np.zeros(N), self.energy, self.diag)
+        self.opts = opts
+        if ground:
+            # nodes on (or below) the ground at the start are held; the first step's
+            # complementarity check releases those the ground pulls
+            ws[6][:, 0] = x[:, 1] <= ground[0].params[0]
+        self.acc_save = np.empty((n, 2))
 
-    def forces_at_x(t):
-        F = ws[4]
-        mod._forces(x, v, t, edge_len, mass, rod.B, F, energy, *fparams)
-        return F
+    def compiled(self) -> bool:
+        return is_compiled(self.mod, ("run", "_forces"))
 
-    # the first step's predictor is x0 + dt v0: the applied acceleration alone (without
-    # the constraint forces that balance most of it) made the first Newton iteration
-    # diverge on a released curved rod at 16x the explicit bound (measured)
-    ws[5][:, :] = 0.0
-    forces_at_x(t0)
-    compile_time = time.perf_counter() - tc
-    tc = time.perf_counter()
-    xs, vs, accs, hs = x.copy(), v.copy(), ws[5].copy(), ws[6].copy()
-    mod.run(x, v, t0, dt, 1, edge_len, mass, winv, rod.B, ws, mu, ab, piv, rhs, energy,
-            diag, np.zeros(3), opts, lr, *params)  # compile / load; state restored below
-    x[:, :], v[:, :], ws[5][:, :], ws[6][:, :] = xs, vs, accs, hs
-    mu[:] = 0.0
-    diag[:] = 0.0
-    lr[7][:] = 0
-    compile_time += time.perf_counter() - tc
+    def compile_estimate(self) -> float:
+        return COMPILE_BASE_S + COMPILE_PER_EFFECT_S * len(self.effects)
 
-    n_total, stops, fset = _schedule(frames, t_end, dt, ev)
+    def _forces_at_x(self, t):
+        F = self.ws[4]
+        self.mod._forces(self.x, self.v, t, self.edge_len, self.mass, self.B, F,
+                         self.energy, *self.fparams)
 
-    times, pos, ens, fired = [], [], [], []
-    acc_save = np.empty((n, 2))
+    def warm(self):
+        """Compile (or load) the stepper; the state is restored afterwards."""
+        x, v, ws = self.x, self.v, self.ws
+        # the first step's predictor is x0 + dt v0: the applied acceleration alone
+        # (without the constraint forces that balance most of it) made the first Newton
+        # iteration diverge on a released curved rod at 16x the explicit bound (measured)
+        ws[5][:, :] = 0.0
+        self._forces_at_x(self.t0)
+        xs, vs, accs, hs = x.copy(), v.copy(), ws[5].copy(), ws[6].copy()
+        self.mod.run(x, v, self.t0, self.dt, 1, *self.work, np.zeros(3), self.opts, self.lr,
+                     *self.params)
+        x[:, :], v[:, :], ws[5][:, :], ws[6][:, :] = xs, vs, accs, hs
+        self.mu[:] = 0.0
+        self.diag[:] = 0.0
+        self.lr[7][:] = 0
 
-    def record(step):
-        times.append(t0 + step * dt)
-        pos.append(x.copy())
-        acc_save[:, :] = ws[5]
-        forces_at_x(t0 + step * dt)
-        ws[5][:, :] = acc_save
-        ke = 0.5 * float(np.sum(mass[:, None] * v * v))
-        ens.append(np.concatenate(([ke], energy)))
+    def advance(self, step, stops, record, pos, ens, rec_steps, nrec):
+        status = 0
+        for k in range(stops.shape[0]):
+            stop = int(stops[k])
+            if stop > step:
+                status, done = self.mod.run(self.x, self.v, self.t0 + step * self.dt,
+                                            self.dt, stop - step, *self.work, self.rest_arr,
+                                            self.opts, self.lr, *self.params)
+                step += done
+                if status != 0:
+                    break
+            if record[k]:
+                nrec = self.frame(pos, ens, rec_steps, nrec, step)
+        return status, step, nrec
 
-    step = 0
-    status = 0
-    events_left = list(ev)
-    tw = time.perf_counter()
-    for stop in stops:
-        if stop > step:
-            status, done = mod.run(x, v, t0 + step * dt, dt, stop - step, edge_len, mass,
-                                   winv, rod.B, ws, mu, ab, piv, rhs, energy, diag, rest_arr,
-                                   opts, lr, *params)
-            step += done
-            if status != 0:
-                break
-        if step in fset:
-            record(step)
-        while events_left and events_left[0][0] <= step:
-            _, eff, j, val = events_left.pop(0)
-            eff.params[j] = val
-            fired.append((t0 + step * dt, eff.name, j, val))
-    wall = time.perf_counter() - tw
+    def after_event(self, step):
+        pass  # the forces are evaluated inside each step's Newton iteration
 
-    t_final = t0 + step * dt
-    name, msg = _STATUS_IMPLICIT[status]
-    dt_max = stable_dt(edge_len, rod.mu, rod.B)
-    if status == 1:
-        msg = msg.format(thr=rest.kinetic_energy, dur=rest.duration) + f" at t = {t_final:g}"
-        if not times or times[-1] != t_final:
-            record(step)
-    elif status == 2:
-        msg = (f"{msg} at t = {t_final + dt:g} (step {step + 1}): momentum residual "
-               f"{diag[5]:.3g} after {NEWTON_MAX_ITER} iterations, even with "
-               f"{2**MAX_HALVINGS} substeps. Try a smaller dt (now {dt:g}, "
-               f"{dt / dt_max:.3g}x the explicit bound) or check the forces for a blow-up.")
-        record(step)
-    elif status == 3:
-        msg = (f"{msg} at t = {t_final:g} (step {step}): the integration blew up. Try a "
-               f"smaller dt (now {dt:g}).")
-    else:
-        msg = f"{msg} ({step} steps of dt = {dt:g})"
-    if diag[6] and status != 2:
-        msg += (f"; {int(diag[6])} rejected step(s) retried with up to "
-                f"{2 ** int(diag[7])} substeps")
-    res = _result(times, pos, ens, force_names, v, n, name, status, msg, step, t_final, diag,
-                  wall, compile_time, dt, fired)
-    # diagnostics of this stepper only (not fields of SimulationResult)
-    res.jacobians = int(diag[10])
-    res.pivoted_factorisations = int(diag[1])
-    res.contact_rounds = int(diag[4])
-    res.stiffness_lowrank = int(lr[7][3])
-    res.contact_updates = int(lr[7][7])
-    res.stiffness_dropped = int(lr[7][1])
-    return res
+    def frame(self, pos, ens, rec_steps, nrec, step):
+        ws = self.ws
+        pos[nrec] = self.x
+        self.acc_save[:, :] = ws[5]
+        self._forces_at_x(self.t0 + step * self.dt)
+        ws[5][:, :] = self.acc_save
+        ens[nrec, 0] = 0.5 * float(np.sum(self.mass[:, None] * self.v * self.v))
+        ens[nrec, 1:] = self.energy
+        rec_steps[nrec] = step
+        return nrec + 1
+
+    def failure(self, status, step, t_final):
+        dt = self.dt
+        if status == 2:
+            return (f"{self.status_names[2][1]} at t = {t_final + dt:g} (step {step + 1}): "
+                    f"momentum residual {self.diag[5]:.3g} after {NEWTON_MAX_ITER} "
+                    f"iterations, even with {2**MAX_HALVINGS} substeps. Try a smaller dt "
+                    f"(now {dt:g}, {dt / self.dt_max:.3g}x the explicit bound) or check the "
+                    "forces for a blow-up.")
+        return (f"non-finite state (NaN/inf) at t = {t_final:g} (step {step}): the "
+                f"integration blew up. Try a smaller dt (now {dt:g}).")
+
+    def stats(self) -> dict:
+        d, c = self.diag, self.lr[7]
+        return {"rejected_steps": int(d[6]), "max_halvings": int(d[7]),
+                "iterations_max": float(d[2]), "iterations_sum": float(d[3]),
+                "contact_rounds": int(d[4]), "constraint_error": float(d[0]),
+                "jacobians": int(d[10]), "pivoted_factorisations": int(d[1]),
+                "stiffness_lowrank": int(c[3]), "contact_updates": int(c[7]),
+                "stiffness_dropped": int(c[1])}

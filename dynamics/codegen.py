@@ -1,0 +1,153 @@
+"""What the generated steppers of both methods share: how an effect's kernel is imported
+into a generated module, and the key of the sources it depends on.
+
+Both methods (:mod:`dynamics.rattle`, :mod:`dynamics.midpoint`) generate, per combination
+of effect kernels, the Python source of a module that imports exactly those kernels and
+calls them in a fixed order, and load it through :func:`dynamics.cache.load_module`, so
+that numba's on-disk cache applies to the compiled loop.  Generated code uses numba's
+public API only (``numba.njit``).
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from .cache import dependency_digest
+
+__all__ = ["kernel_ref", "stepper_depends"]
+
+
+def kernel_ref(effect):
+    """(module, name) through which the generated module imports an effect's kernel."""
+    k = getattr(effect, "kernel", None)
+    k = getattr(k, "__func__", k)  # a dispatcher read through an instance is a bound method
+    if k is None or not hasattr(k, "py_func"):
+        raise TypeError(
+            f"effect {getattr(effect, 'name', effect)!r}: kernel must be a numba "
+            f"njit(cache=True) dispatcher, got {type(k).__name__}"
+        )
+    mod, name = k.__module__, k.__name__
+    ok = False
+    if mod != "__main__":
+        try:
+            ok = getattr(importlib.import_module(mod), name, None) is k
+        except ImportError:
+            ok = False
+    if not ok:
+        raise ValueError(
+            f"effect {effect.name!r}: kernel {mod}.{name} is not importable by that name; "
+            "define it at module level of an importable module (not in __main__ or inside "
+            "a function) so the generated stepper can import and cache it"
+        )
+    return mod, name
+
+
+def stepper_depends(refs):
+    """:func:`dynamics.cache.dependency_digest` of what a generated stepper uses: the
+    ``dynamics`` kernels and the effect kernels' modules with what they use."""
+    return dependency_digest(["dynamics.bending", "dynamics.constraints", "dynamics.effects",
+                              "dynamics.rod", *(mod for _, mod, _ in refs)])
+
+
+
+
+#: Decorator of the generated dispatch functions: inlined into their callers (a call with
+#: its arrays reference-counted would cost more than the kernel calls it holds).
+_DISPATCH = '@numba.njit(cache=True, inline="always")'
+
+
+def render(template: str, refs, imports: str = "") -> str:
+    """The source of a stepper module: ``template`` with the calls of the effects.
+
+    Parameters
+    ----------
+    template : str
+        Python source of the method's functions (a :class:`string.Template`): ``$pargs``
+        stands for the parameter arrays of all effects (``, p0, p1, ...``, in the order of
+        ``refs``), ``$fargs`` for those of the force effects.  The template calls the
+        generated dispatch functions below and reads the flags.
+    refs : sequence of (kind, module, name, stiffness, native)
+        Per effect: its kind, where its kernel is imported from, the (module, name) of its
+        optional stiffness hook (or None), and whether the method handles the effect
+        itself instead of calling its kernel (the midpoint method's ground); a native
+        constraint's height is read by ``_ground_height``.
+    imports : str
+        The method's own import lines.
+
+    Generated, each ``numba.njit(cache=True, inline="always")``:
+
+    ``_external_forces(x, v, t, edge_len, mass, F, energy$fargs)``
+        Adds each force effect's force to ``F``; its energy to ``energy[1 + k]``.
+    ``_damp(x, v, t, edge_len, mass, h$pargs)``
+        Each damping effect over ``h``.
+    ``_constrain(x, v, t, edge_len, winv, stage$pargs)``
+        Each constraint effect not handled natively, at ``stage``.
+    ``_stiffness(x, v, t, edge_len, mass, K, U, C$fargs) -> int``
+        The stiffness hooks of the force effects (low-rank parts in consecutive blocks of
+        ``U`` and ``C``); returns the total rank.
+    ``_ground_height(t$pargs) -> float``
+        The height of the natively handled ground (0.0 without one).
+
+    Flags: ``HAS_DAMPING``, ``HAS_CONSTRAINTS`` (non-native), ``HAS_GROUND`` (native),
+    ``HAS_STIFFNESS``.
+    """
+    import string
+
+    kernel_imports, P, F = [], [], []
+    forces, damps, cons, stiff, ground = [], [], [], [], []
+    for j, (kind, mod, name, hook, native) in enumerate(refs):
+        p = f"p{j}"
+        P.append(p)
+        if native:
+            ground.append(p)
+            continue
+        kernel_imports.append(f"from {mod} import {name} as _k{j}")
+        if kind == "force":
+            F.append(p)
+            forces.append(f"    energy[{len(forces) + 1}] = _k{j}(x, v, t, {p}, edge_len, "
+                          "mass, F)")
+            if hook is not None:
+                kernel_imports.append(f"from {hook[0]} import {hook[1]} as _s{j}")
+                stiff += [
+                    f"    k = _s{j}(x, v, t, {p}, edge_len, mass, K, U[r:r + STIFFNESS_RANK],",
+                    "             C[r:r + STIFFNESS_RANK, r:r + STIFFNESS_RANK])",
+                    "    if k < 0 or k > STIFFNESS_RANK:",
+                    "        raise ValueError('a stiffness hook returned a rank outside "
+                    "[0, STIFFNESS_RANK]')",
+                    "    r += k"]
+        elif kind == "damping":
+            damps.append(f"    _k{j}(x, v, t, {p}, edge_len, mass, h)")
+        else:
+            cons.append(f"    _k{j}(x, v, t, {p}, edge_len, winv, stage)")
+    pargs = "".join(", " + p for p in P)
+    fargs = "".join(", " + p for p in F)
+    head = [
+        "import numba",
+        "import numpy as np",
+        "from dynamics.effects import STIFFNESS_RANK",
+        imports.rstrip(),
+        *kernel_imports,
+        "",
+        f"HAS_DAMPING = {bool(damps)}",
+        f"HAS_CONSTRAINTS = {bool(cons)}",
+        f"HAS_GROUND = {bool(ground)}",
+        f"HAS_STIFFNESS = {bool(stiff)}",
+        "", "",
+        _DISPATCH,
+        f"def _external_forces(x, v, t, edge_len, mass, F, energy{fargs}):",
+        *forces, "    return None", "", "",
+        _DISPATCH,
+        f"def _damp(x, v, t, edge_len, mass, h{pargs}):",
+        *damps, "    return None", "", "",
+        _DISPATCH,
+        f"def _constrain(x, v, t, edge_len, winv, stage{pargs}):",
+        *cons, "    return None", "", "",
+        _DISPATCH,
+        f"def _stiffness(x, v, t, edge_len, mass, K, U, C{fargs}):",
+        "    r = 0", *stiff, "    return r", "", "",
+        _DISPATCH,
+        f"def _ground_height(t{pargs}):",
+        f"    return {ground[0] + '[0]' if ground else '0.0'}",
+        "", "",
+    ]
+    return "\n".join(head) + string.Template(template).substitute(pargs=pargs, fargs=fargs)

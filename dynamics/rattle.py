@@ -1,0 +1,498 @@
+"""The RATTLE method of :func:`dynamics.simulate` (``method="rattle"``): an explicit,
+symplectic stepper specialised to the effects present.
+
+Integrator
+----------
+One step of size ``dt`` (Andersen 1983, "RATTLE"; Leimkuhler & Reich 2004, sec. 7.2),
+with damping split around it (Strang):
+
+1. damping effects: exact decay of ``v`` over ``dt/2``;
+2. half kick ``v_h = v + dt/2 M^-1 F(x)``; drift ``x* = x + dt v_h``;
+3. constraint effects, stage 0 (clamps, ground hold coordinates of ``x*``);
+4. SHAKE: project ``x*`` onto the edge lengths (Newton + tridiagonal solves), starting
+   from ``x* + W G^T lam`` with ``lam`` the previous step's multipliers (the constraint
+   forces change little in a step: the same root in fewer updates, 2 instead of 3 on
+   fig3-strip); ``v_h = (x_new - x)/dt``;
+5. forces at ``x_new``; half kick ``v = v_h + dt/2 W F(x_new)``;
+6. constraint effects, stage 1; RATTLE velocity projection (``G v = 0``);
+7. damping effects over ``dt/2``.
+
+Without damping and contact the map is symplectic and time-reversible, so the energy
+error stays bounded, O(dt**2), over long runs (``tests/dynamics/test_energy.py``).
+
+Specialisation
+--------------
+For each distinct tuple of effect kernels the method renders :data:`_TEMPLATE` (the
+stepper's functions ``prepare``, ``_step``, ``run``, ``run_frames``, plain Python) with the
+dispatch functions that call exactly those kernels (:func:`dynamics.codegen.render`, the
+mechanism both methods use) and loads it from the cache of :mod:`dynamics.cache`, so that
+numba's on-disk cache (``cache=True``) works on it and a second process loads the compiled
+loop instead of compiling it.  An absent effect costs nothing, and all the steps between
+two output frames or events run inside one compiled call (no Python per step), as does the
+recording of the output frames
+(``run_frames``: positions and energies written into preallocated arrays; Python only
+between events).  Measured (``benchmarks/dynamics_speed.py``, 200 edges): the generated
+bending-only stepper runs at 0.92-1.03x the time of a hand-written RATTLE loop with the
+same kernels (noise level); a force effect adds 0-3% (gravity, loads, an external
+kernel), damping 12%, a constraint effect (ground, clamp) 4-5%; a Python call per step
+would add 3.1 us/step (1.6x at 100 edges), a Python call and a recorded frame every 58
+steps (supp-fig5) 0.4 us/step.  The loops over all coordinates run on flat views of the
+(n, 2) arrays: numba indexes an (n, 2) array with a run-time row stride, which keeps a
+loop scalar.  ``_step``, ``_forces`` and the dispatch functions are inlined into ``run``;
+the calls of the solver kernels still count the references of their array arguments
+(numba does it with atomic operations: a call with 23 arrays cost 170-180 ns, measured), a
+cost the stepper pays because it uses numba's public API only.  The solvers
+and the bending kernel are called with the flat views (``shake_flat``,
+``velocity_projection_flat``, ``bending_force_add_flat``): a reshape per call is a C call.
+Not chosen: a generic loop over a tuple of first-class functions (indirect calls, not
+cacheable by numba).  Cold compile of one stepper ~7-30 s, warm load ~0.5 s.
+
+Where the time of an impact run goes (measured with cycle counters around each
+part of the step on supp-fig5 and fig3-strip): SHAKE 42%, the velocity projection 18%,
+bending 13-14%, the external forces (capillary, gravity) 11-14%, damping 8% (supp-fig5),
+contact, kicks and bookkeeping ~10% (fig3-strip); outside the loop, the crossing checks
+and measures of ``elastocap.impact`` take ~2%.  Section 3b of
+``benchmarks/dynamics_speed.py`` times the runs (``--baseline REV`` beside a revision).
+
+Generated modules live in the private, content-addressed cache of :mod:`dynamics.cache`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .bending import BENDING_WORK_ROWS
+from .cache import is_compiled, load_module
+from .codegen import kernel_ref, render, stepper_depends
+from .constraints import SHAKE_FINAL, new_work
+from .effects import KINDS
+from .rod import kinetic_energy
+
+__all__ = ["DT_BOUND_C", "Run", "compile_stepper", "stable_dt"]
+
+#: Explicit stability constant of velocity Verlet for DER bending:
+#: ``dt_max = DT_BOUND_C * h_min**2 * sqrt(mu / B)``.  Linear analysis of the discrete
+#: beam (stencil [1, -4, 6, -4, 1] / h**4, highest mode omega = 4 sqrt(B/mu) / h**2, Verlet
+#: stable for omega dt < 2) gives C = 0.5.  Measured by bisection on free rods of 25, 100,
+#: 200, 400 edges with random small perturbations (energy growth over 3e4 steps): the
+#: threshold is C = 0.5000-0.5019.  Curvature stiffens DER bending by sec**2(psi/2)
+#: (1.1 at a turning angle of 0.6 rad per edge), hence a 10% margin: C = 0.45.  Accuracy
+#: usually asks for less (the energy error grows as dt**2, see the tests).
+DT_BOUND_C = 0.45
+
+#: A step whose SHAKE projection fails (typically a violent contact: a whip-like tip
+#: moving a large fraction of an edge per step) is rejected and retried as 2, 4, 8, 16
+#: substeps; 4 halvings cover a 16x local velocity excess and keep a hopeless run short.
+MAX_HALVINGS = 4
+
+#: Rounds of "re-apply constraint effects, project again" after the first projection: a
+#: projection can push a free node slightly through the ground (seen: 3e-4 for a rod
+#: slapping the ground); one round fixes it in practice, the second is a safety margin.
+CONTACT_ROUNDS = 2
+
+def stable_dt(edge_len, mu, B):
+    """Explicit stability bound of the bending force, ``DT_BOUND_C h_min**2 sqrt(mu/B)``.
+
+    Parameters
+    ----------
+    edge_len : array_like, shape (n_edges,)
+        Rest edge lengths (length units).
+    mu : float
+        Mass per unit length.
+    B : float
+        Bending modulus; ``B == 0`` gives ``inf``.
+
+    Returns
+    -------
+    float
+        Largest accepted time step (time units).
+    """
+    if B == 0:
+        return math.inf
+    h = float(np.min(edge_len))
+    return DT_BOUND_C * h * h * math.sqrt(mu / B)
+
+
+# ----------------------------------------------------------------------------- codegen
+
+
+#: The method's own imports in its generated module.
+_IMPORTS = """\
+from dynamics.bending import bending_force_add_flat
+from dynamics.constraints import (constraint_error, shake, shake_flat, velocity_projection,
+                                  velocity_projection_flat)
+from dynamics.rod import kinetic_energy
+"""
+
+#: Body of the generated module (:func:`dynamics.codegen.render`, which generates the
+#: effects' dispatch functions ``_external_forces``, ``_damp``, ``_constrain`` and the flags
+#: before it; ``$pargs`` / ``$fargs`` stand for the effects' parameter arrays).
+_TEMPLATE = """
+@numba.njit(cache=True, inline="always")
+def _forces(x, xf, v, t, edge_len, mass, B, F, Ff, energy, bw$fargs):
+    for j in range(Ff.shape[0]):
+        Ff[j] = 0.0
+    energy[0] = bending_force_add_flat(xf, edge_len, B, Ff, bw)
+    _external_forces(x, v, t, edge_len, mass, F, energy$fargs)
+
+
+@numba.njit(cache=True)
+def prepare(x, v, t, edge_len, winv0, A, cw, lam$pargs):
+    xn = A[1]
+    winv = A[3]
+    xn[:, :] = x
+    winv[:, :] = winv0
+    _constrain(xn, v, t, edge_len, winv, 0$pargs)
+    lam[:] = 0.0
+    err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, False)
+    lam[:] = 0.0
+    x[:, :] = xn
+    _constrain(x, v, t, edge_len, winv, 1$pargs)
+    velocity_projection(x, v, winv, cw)
+    return constraint_error(x, edge_len)
+
+
+@numba.njit(cache=True, inline="always")
+def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, winvf, xf,
+          vf, winv0f, cw, lam, bw, energy, diag$pargs):
+    nc = xf.shape[0]
+    half = 0.5 * dt
+    t1 = t + dt
+    _damp(x, v, t, edge_len, mass, half$pargs)
+    for j in range(nc):
+        vhf[j] = vf[j] + half * winv0f[j] * Ff[j]
+        xnf[j] = xf[j] + dt * vhf[j]
+        winvf[j] = winv0f[j]
+    _constrain(xn, vh, t1, edge_len, winv, 0$pargs)
+    # SHAKE starts from the drift moved by the previous step's multipliers (a predictor
+    # of the constraint forces); the root is the same, only the iteration count changes
+    err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, True, SHAKE_FINAL)
+    if it < 0:
+        # the predictor can mislead after an abrupt change (an impact): retry from
+        # the plain drift before rejecting the step
+        for j in range(nc):
+            xnf[j] = xf[j] + dt * vhf[j]
+            winvf[j] = winv0f[j]
+        _constrain(xn, vh, t1, edge_len, winv, 0$pargs)
+        lam[:] = 0.0
+        err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, False,
+                                         SHAKE_FINAL)
+    if it == 0:
+        # the prediction needed no update: its multipliers may be stale (a rod at
+        # rest would keep being moved by them at round-off level); start the
+        # next step from the plain drift
+        lam[:] = 0.0
+    if err0 > diag[0]:
+        diag[0] = err0
+    if it < 0:
+        diag[4] = edge
+        diag[5] = err
+        return 2
+    if HAS_CONSTRAINTS:
+        # the projection may push a free node through a unilateral constraint (ground):
+        # re-apply the constraints to the projected positions and project again (a no-op
+        # when no new coordinate got held: protocol: a constraint kernel holds (zeroes
+        # winv of) every coordinate it sets)
+        for _round in range(CONTACT_ROUNDS):
+            held = 0
+            for j in range(nc):
+                held += winvf[j] == 0.0
+            _constrain(xn, vh, t1, edge_len, winv, 0$pargs)
+            for j in range(nc):
+                held -= winvf[j] == 0.0
+            if held == 0:
+                break
+            diag[1] += 1
+            err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, False, 0.0)
+            if it2 < 0:
+                diag[4] = edge
+                diag[5] = err
+                return 2
+            it += it2
+    if it > diag[2]:
+        diag[2] = it
+    diag[3] += it
+    inv_dt = 1.0 / dt
+    for j in range(nc):
+        vhf[j] = (xnf[j] - xf[j]) * inv_dt
+        xf[j] = xnf[j]
+    _forces(x, xf, vh, t1, edge_len, mass, B, F, Ff, energy, bw$fargs)
+    for j in range(nc):
+        vf[j] = vhf[j] + half * winvf[j] * Ff[j]
+    _constrain(x, v, t1, edge_len, winv, 1$pargs)
+    # SHAKE has just split winvf into the work array (constraint kernels change winv at
+    # stage 0 only)
+    velocity_projection_flat(xf, vf, winvf, cw, True)
+    _damp(x, v, t1 - half, edge_len, mass, half$pargs)
+    return 0
+
+
+@numba.njit(cache=True)
+def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy, diag,
+        rest$pargs):
+    nc = x.size
+    Af = A.reshape(A.shape[0], nc)
+    xf = x.reshape(nc)
+    vf = v.reshape(nc)
+    winv0f = winv0.reshape(nc)
+    F = A[0]
+    xn = A[1]
+    vh = A[2]
+    winv = A[3]
+    Ff = Af[0]
+    xnf = Af[1]
+    vhf = Af[2]
+    winvf = Af[3]
+    xbf = Af[4]
+    vbf = Af[5]
+    fbf = Af[6]
+    _forces(x, xf, v, t0, edge_len, mass, B, F, Ff, energy, bw$fargs)
+    status = 0
+    steps = 0
+    for s in range(n_steps):
+        t = t0 + s * dt
+        if HAS_DAMPING:  # only damping touches v before the projection can fail
+            for j in range(nc):
+                vbf[j] = vf[j]
+        st = _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf,
+                   winvf, xf, vf, winv0f, cw, lam, bw, energy, diag$pargs)
+        if st == 2:
+            # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps, without the
+            # multiplier predictor (it scales with the step squared)
+            for j in range(nc):
+                if HAS_DAMPING:
+                    vf[j] = vbf[j]
+                xbf[j] = xf[j]
+                vbf[j] = vf[j]
+                fbf[j] = Ff[j]
+            for level in range(1, MAX_HALVINGS + 1):
+                diag[6] += 1
+                sub = 2 ** level
+                h = dt / sub
+                st = 0
+                lam[:] = 0.0
+                for j in range(sub):
+                    st = _step(x, v, t + j * h, h, edge_len, mass, winv0, B, F, xn, vh, winv,
+                               Ff, xnf, vhf, winvf, xf, vf, winv0f, cw, lam, bw, energy,
+                               diag$pargs)
+                    if st != 0:
+                        break
+                if st == 0:
+                    if level > diag[7]:
+                        diag[7] = level
+                    break
+                for j in range(nc):
+                    xf[j] = xbf[j]
+                    vf[j] = vbf[j]
+                    Ff[j] = fbf[j]
+            lam[:] = 0.0
+            if st != 0:
+                status = 2
+                break
+        steps += 1
+        ke = kinetic_energy(mass, v)
+        if not np.isfinite(ke + np.sum(energy)):
+            status = 3
+            worst = 0
+            for i in range(x.shape[0]):
+                if not (np.isfinite(v[i, 0]) and np.isfinite(v[i, 1])
+                        and np.isfinite(x[i, 0]) and np.isfinite(x[i, 1])):
+                    worst = i
+                    break
+            diag[4] = worst
+            break
+        if rest[0] > 0.0:
+            if ke < rest[0]:
+                rest[2] += dt
+                if rest[2] >= rest[1]:
+                    status = 1
+                    break
+            else:
+                rest[2] = 0.0
+    err0, edge = constraint_error(x, edge_len)
+    if err0 > diag[0]:
+        diag[0] = err0
+    return status, steps
+
+
+@numba.njit(cache=True)
+def run_frames(x, v, t0, dt, step, stops, record, pos, ens, rec_steps, nrec, edge_len, mass,
+               winv0, B, A, cw, lam, bw, energy, diag, rest$pargs):
+    # run to each stop in turn (one run call per stop, as a Python loop over run would
+    # do) and record the frames flagged in ``record``
+    status = 0
+    for k in range(stops.shape[0]):
+        if stops[k] > step:
+            status, done = run(x, v, t0 + step * dt, dt, stops[k] - step, edge_len, mass,
+                               winv0, B, A, cw, lam, bw, energy, diag, rest$pargs)
+            step += done
+            if status != 0:
+                break
+        if record[k]:
+            for i in range(x.shape[0]):
+                pos[nrec, i, 0] = x[i, 0]
+                pos[nrec, i, 1] = x[i, 1]
+            ens[nrec, 0] = kinetic_energy(mass, v)
+            for i in range(energy.shape[0]):
+                ens[nrec, i + 1] = energy[i]
+            rec_steps[nrec] = step
+            nrec += 1
+    return status, step, nrec
+"""
+
+
+def _generate_source(refs):
+    """Source of a RATTLE stepper module for ``refs = [(kind, module, name), ...]``
+    (:func:`dynamics.codegen.render` of :data:`_TEMPLATE`).
+
+    Layout of the generated functions' arguments: ``x, v`` (n, 2) the state; ``A`` the
+    (7, n, 2) node work arrays (forces F, prediction xn, half-step velocity vh, inverse
+    masses winv in force this step, and three backups for rejected steps); ``cw`` the
+    constraint work array and ``lam`` the SHAKE multipliers of the last step (padded, see
+    :mod:`dynamics.constraints`); ``bw`` the bending work array.  The loops over all
+    coordinates run on flat views (``*f``, made once per ``run`` call): numba indexes an
+    (n, 2) array with a run-time row stride, which keeps a loop scalar.
+    """
+    imports = (_IMPORTS + f"SHAKE_FINAL = {SHAKE_FINAL!r}\nCONTACT_ROUNDS = {CONTACT_ROUNDS}\n"
+               f"MAX_HALVINGS = {MAX_HALVINGS}\n")
+    return render(_TEMPLATE, [(kind, mod, name, None, False) for kind, mod, name in refs],
+                  imports)
+
+
+_MODULES: dict = {}
+
+
+def compile_stepper(effects=()):
+    """Return the generated RATTLE stepper module for these effects (generate/import if
+    needed).
+
+    Parameters
+    ----------
+    effects : sequence of effect objects
+        Only their ``kind`` and ``kernel`` matter (order included).
+
+    Returns
+    -------
+    module
+        With numba functions ``run``, ``run_frames``, ``prepare`` and ``_forces``.
+        Compilation happens lazily at the first call (loaded from numba's cache when
+        available).
+    """
+    refs = []
+    for e in effects:
+        if e.kind not in KINDS:
+            raise ValueError(
+                f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}"
+            )
+        refs.append((e.kind, *kernel_ref(e)))
+    key = tuple(refs)
+    if key not in _MODULES:
+        _MODULES[key] = load_module("rattle", _generate_source(key), stepper_depends(key))
+    return _MODULES[key]
+
+
+#: Cold compile time of a RATTLE stepper, measured on 2 shared cores (bending only 7 s, one
+#: effect more ~3 s each): the estimate the driver announces before a first compile.
+COMPILE_BASE_S = 7.0
+COMPILE_PER_EFFECT_S = 3.0
+
+
+class Run:
+    """A RATTLE run in progress (the method protocol of :mod:`dynamics.driver`).
+
+    Options: ``check_dt`` (default True) refuses a ``dt`` above :func:`stable_dt`.
+    """
+
+    status_names = {2: ("shake_failed", "inextensibility projection (SHAKE) did not converge")}
+
+    def __init__(self, rod, effects, dt, t0, rest, check_dt=True):
+        self.dt_max = stable_dt(rod.edge_len, rod.mu, rod.B)
+        if check_dt and dt > self.dt_max:
+            h = float(rod.edge_len.min())
+            raise ValueError(
+                f"dt = {dt:.4g} exceeds the explicit stability bound of bending "
+                f"dt_max = C h**2 sqrt(mu/B) = {self.dt_max:.4g} (C = {DT_BOUND_C}, h = min "
+                f"edge length = {h:.4g}, mu = {rod.mu:.4g}, B = {rod.B:.4g}). Use dt <= "
+                f"{self.dt_max:.4g}, or fewer edges (dt_max grows as h**2), or "
+                "method='midpoint'."
+            )
+        self.dt, self.t0 = dt, t0
+        self.effects = effects
+        self.label = "+".join(e.name for e in effects) or "bending"
+        self.mod = compile_stepper(effects)
+        self.params = tuple(e.params for e in effects)
+        self.force_names = [e.name for e in effects if e.kind == "force"]
+        self.n_energies = 1 + len(self.force_names)
+        self.x = rod.x.copy()
+        self.v = rod.v.copy()
+        n = self.x.shape[0]
+        self.mass = rod.mass
+        winv0 = np.empty((n, 2))
+        winv0[:, 0] = 1.0 / self.mass
+        winv0[:, 1] = 1.0 / self.mass
+        self.edge_len = rod.edge_len.copy()
+        self.energy = np.zeros(self.n_energies)
+        # diag: [0] largest constraint error, [1] contact rounds, [2] most iterations,
+        # [3] iteration sum, [4] failing edge/node, [5] its residual, [6] rejected steps,
+        # [7] deepest halving
+        self.diag = np.zeros(8)
+        rest_arr = np.zeros(3)
+        if rest is not None:
+            rest_arr[0] = rest.kinetic_energy
+            rest_arr[1] = rest.duration
+        self.work = (self.edge_len, self.mass, winv0, rod.B, np.zeros((7, n, 2)),
+                     new_work(n - 1), np.zeros(n + 1), np.zeros((BENDING_WORK_ROWS, n)),
+                     self.energy, self.diag, rest_arr)
+
+    def compiled(self) -> bool:
+        return is_compiled(self.mod, ("run", "run_frames", "prepare"))
+
+    def compile_estimate(self) -> float:
+        return COMPILE_BASE_S + COMPILE_PER_EFFECT_S * len(self.effects)
+
+    def warm(self):
+        """Project the initial state, compile (or load) ``run`` and ``run_frames``."""
+        w = self.work
+        self.mod.prepare(self.x, self.v, self.t0, w[0], w[2], w[4], w[5], w[6], *self.params)
+        self.mod.run(self.x, self.v, self.t0, self.dt, 0, *w, *self.params)
+        pos = np.empty((1, self.x.shape[0], 2))
+        self.mod.run_frames(self.x, self.v, self.t0, self.dt, 0, np.zeros(0, np.int64),
+                            np.zeros(0, np.bool_), pos, np.empty((1, 1 + self.n_energies)),
+                            np.empty(1, np.int64), 0, *w, *self.params)
+
+    def advance(self, step, stops, record, pos, ens, rec_steps, nrec):
+        return self.mod.run_frames(self.x, self.v, self.t0, self.dt, step, stops, record,
+                                   pos, ens, rec_steps, nrec, *self.work, *self.params)
+
+    def after_event(self, step):
+        # re-evaluate forces and energies with the new parameters
+        self.mod.run(self.x, self.v, self.t0 + step * self.dt, self.dt, 0, *self.work,
+                     *self.params)
+
+    def frame(self, pos, ens, rec_steps, nrec, step):
+        pos[nrec] = self.x
+        ens[nrec, 0] = kinetic_energy(self.mass, self.v)
+        ens[nrec, 1:] = self.energy
+        rec_steps[nrec] = step
+        return nrec + 1
+
+    def failure(self, status, step, t_final):
+        d, dt = self.diag, self.dt
+        name, msg = self.status_names.get(status, (None, "non-finite state (NaN/inf)"))
+        if status == 2:
+            return (f"{msg} at t = {t_final + dt:g} (step {step + 1}): relative edge-length "
+                    f"residual {d[5]:.3g} at edge {int(d[4])} after the iteration cap, even "
+                    f"with {2**MAX_HALVINGS} substeps. The predicted motion per step is too "
+                    f"large: try a smaller dt (now {dt:g}, stability bound "
+                    f"{self.dt_max:.4g}) or check the forces for a blow-up.")
+        return (f"{msg} at t = {t_final:g} (step {step}) at node {int(d[4])}: the "
+                f"integration blew up. Try a smaller dt (now {dt:g}, stability bound of "
+                f"bending {self.dt_max:.4g}); stiff external forces need their own dt limit.")
+
+    def stats(self) -> dict:
+        d = self.diag
+        return {"rejected_steps": int(d[6]), "max_halvings": int(d[7]),
+                "iterations_max": float(d[2]), "iterations_sum": float(d[3]),
+                "contact_rounds": int(d[1]), "constraint_error": float(d[0])}
