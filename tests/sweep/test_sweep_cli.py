@@ -85,6 +85,9 @@ def test_json_run_has_runs_and_boundary(tmp_path, capsys):
         if b["status"] == "bracketed":
             assert b["we_sqrt_high"] - b["we_sqrt_low"] <= 1.0
     assert rep["x_unit"] == "l_eg" and rep["variable"] == "we_sqrt"
+    # every --set override is recorded (and drawn in the plot's title from it)
+    assert rep["overrides"] == ["numerics.accuracy=draft", "numerics.t_max=5.0"]
+    assert rep["resolution"]["n_edges"] == 80  # draft at the largest Delta (We^1/2 = 3)
     for f in ("sweep.sqlite", "sweep.json", "phase-diagram.png"):
         assert (out / f).stat().st_size > 0
     assert json.loads((out / "sweep.json").read_text())["runs"] == rep["runs"]
