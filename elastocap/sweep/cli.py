@@ -142,9 +142,7 @@ def _validate(args):
         raise ValueError(f"--refine: got {args.refine!r}; expected a finite number > 0")
     levels = 0
     if args.converge is not None:
-        if args.converge < 1:
-            check_verify_levels(-1)  # the message names --converge and what is allowed
-        levels = check_verify_levels(args.converge)
+        levels = check_verify_levels(args.converge, minimum=1)
     elif args.verify:
         levels = 1
     export = check_export(args.export) if args.export else None

@@ -786,9 +786,11 @@ def _check_scene(scene: Scene) -> None:
         )
 
 
-def check_verify_levels(levels) -> int:
-    """``levels`` as an integer 0 ... MAX_LEVELS (refused by message otherwise)."""
-    if isinstance(levels, bool) or not isinstance(levels, int) or not 0 <= levels <= MAX_LEVELS:
+def check_verify_levels(levels, minimum: int = 0) -> int:
+    """``levels`` as an integer ``minimum`` ... MAX_LEVELS (refused by message otherwise;
+    0 means no verification)."""
+    if (isinstance(levels, bool) or not isinstance(levels, int)
+            or not minimum <= levels <= MAX_LEVELS):
         raise ValueError(f"--converge: got {levels!r}; expected an integer from 1 to "
                          f"{MAX_LEVELS} (verification levels, each 1.5x the edges)")
     return levels

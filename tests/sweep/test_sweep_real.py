@@ -28,7 +28,8 @@ SCENE = load_scene("fig3-strip", OVERRIDES)
 def _table(store_path) -> dict:
     with ResultStore(store_path) as st:
         return {r["scene_digest"]: (r["outcome"], r["companion_outcome"], r["final_measure"],
-                                    r["companion_measure"], r["steps"], r["t_end"], r["status"])
+                                    r["companion_measure"], r["steps"], r["t_end"], r["status"],
+                                    r["reason"], r["level"], r["n_edges"], r["dt"])
                 for r in st.rows()}
 
 
