@@ -68,9 +68,11 @@ def load_experiments(path: str | Path) -> list[dict]:
 def settings_line(rep: dict) -> str:
     """What a figure of the sweep ``rep`` must say about how it was made: every ``--set``
     override, the resolution and the criterion."""
-    over = rep.get("overrides") or []
+    over = rep.get("overrides")
     res = rep.get("resolution")
-    parts = ["--set " + ", ".join(over) if over else "no --set overrides"]
+    parts = []
+    if over is not None:  # a report of a sweep made before overrides were recorded: silent
+        parts.append("--set " + ", ".join(over) if over else "no --set overrides")
     if res:
         parts.append(f"{res['n_edges']} edges, dt {res['dt']:.3g}")
     if rep.get("criterion"):
@@ -204,7 +206,8 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
                      + (f" + {len(all_runs) - len(runs)} verification runs"
                         if len(all_runs) > len(runs) else "")
                      + f", elastocap {rep['version']})")
-    ax.set_title(head + "\n" + settings_line(rep), fontsize=8)
+    line = settings_line(rep)
+    ax.set_title(head + ("\n" + line if line else ""), fontsize=8)
     ax.grid(alpha=0.25)
     # outside the axes, on the right: a legend inside would hide points of the diagram
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
