@@ -3,9 +3,15 @@
 The paper's strip model has no dissipation but the perfectly inelastic ground: its runs do
 not come to rest (measured: all 712 runs of a 20 x 20 sweep still moving at t = 200), and
 the outcome at t_max is then erratic along a line of x. This figure adds a small viscous
-damping, 0.1 (the order of the supp-fig5 value), an explicit and documented choice (README,
-"Fig 3d"), so that every run ends at rest; the paper's criterion is used, and the points
-where the frame-independent companion criterion disagrees are ringed.
+damping, 0.1 (the order of the supp-fig5 value), an explicit and documented choice
+(docs/guide/phase-diagrams.md), so that every run ends at rest; the paper's criterion is
+used, and the points where the frame-independent companion criterion disagrees are ringed.
+
+Every run uses one resolution (:func:`elastocap.sweep.sweep_resolutions`: the accuracy
+preset's edges at the sweep's largest Delta); each boundary bracket is verified at 1.5x the
+edges and half the time step, and where it moves, located and verified again at the next
+level (``FIG3D_LEVELS``). Figs 4 and 5 (:mod:`elastocap.paper_figures.fig4_fig5`) run at
+the same resolution (:func:`fig3d_resolution`).
 """
 
 from __future__ import annotations
@@ -17,30 +23,58 @@ import numpy as np
 
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
-from elastocap.sweep import plot_phase_diagram, run_sweep
+from elastocap.sweep import plot_phase_diagram, run_sweep, sweep_resolutions
+from elastocap.sweep.grid import grid_points
 
 #: The damping added to the strip scene for this figure (see the module docstring).
 FIG3D_DAMPING = 0.1
+#: Final time: damped runs are at rest well before (rest criterion of the scene).
+FIG3D_T_MAX = 100.0
+#: The diagram: x/l_eg = 0.5 ... 6 in steps of 0.5; We^1/2 = 0.5 ... 4 in steps of 0.5,
+#: then every boundary bisected to a bracket <= 0.05.
+FIG3D_X = tuple(float(v) for v in np.linspace(0.5, 6.0, 12))
+FIG3D_WE = tuple(float(v) for v in np.linspace(0.5, 4.0, 8))
+FIG3D_TOL = 0.05
+#: Verification levels: a moved bracket is located and verified again, up to level 2
+#: (2.25x the edges of the sweep).
+FIG3D_LEVELS = 2
 
 
-def main(out_dir, fast: bool = False, workers: int | None = None) -> list[Path]:
-    """Sweep, refine and plot; writes ``fig3d.png``, ``fig3d.json`` and ``fig3d.sqlite``."""
+def fig3d_overrides(accuracy: str) -> list[str]:
+    """The ``--set`` overrides of the figure's scene (recorded in its title and JSON)."""
+    return [f"numerics.accuracy={accuracy}", f"effects.damping={FIG3D_DAMPING}",
+            f"numerics.t_max={FIG3D_T_MAX}"]
+
+
+def fig3d_scene(accuracy: str):
+    return load_scene("fig3-strip", fig3d_overrides(accuracy))
+
+
+def fig3d_resolution(accuracy: str, fast: bool = False):
+    """The :class:`~elastocap.sweep.Resolution` (level 0) every run of the figure uses."""
+    scene = fig3d_scene(accuracy)
+    xs, we = ([3.0], [1.0, 2.5]) if fast else (FIG3D_X, FIG3D_WE)
+    return sweep_resolutions(scene, grid_points(scene, xs, we_sqrts=we)[0])[0]
+
+
+def main(out_dir, fast: bool = False, workers: int | None = None,
+         accuracy: str | None = None) -> list[Path]:
+    """Sweep, refine, verify and plot; writes ``fig3d.png``, ``fig3d.json`` and
+    ``fig3d-ACCURACY.sqlite`` (the store). ``fast``: one line, two runs, draft, no
+    verification (a smoke test)."""
     out = Path(out_dir)
-    scene = load_scene(
-        "fig3-strip",
-        {"numerics.accuracy": "draft", "effects.damping": FIG3D_DAMPING, "numerics.t_max": 100.0},
-    )
+    accuracy = accuracy or ("draft" if fast else "default")
+    scene = fig3d_scene(accuracy)
     if fast:
-        xs, we = [3.0], [1.0, 2.5]
-        refine = None
+        xs, we, refine, levels = [3.0], [1.0, 2.5], None, 0
     else:
-        xs, we = np.linspace(0.5, 6.0, 12), np.linspace(0.5, 4.0, 8)
-        refine = 0.1
-    res = run_sweep(scene, xs, we_sqrts=we, store=out / "fig3d.sqlite", refine_tol=refine,
-                    workers=workers)
+        xs, we, refine, levels = FIG3D_X, FIG3D_WE, FIG3D_TOL, FIG3D_LEVELS
+    res = run_sweep(scene, xs, we_sqrts=we, store=out / f"fig3d-{accuracy}.sqlite",
+                    refine_tol=refine, workers=workers, verify_levels=levels,
+                    overrides=fig3d_overrides(accuracy))
     png = out / "fig3d.png"
-    plot_phase_diagram(res, png, title=f"Fig 3d (model): fig3-strip, damping {FIG3D_DAMPING}, "
-                       "draft resolution; paper's criterion, rings: companion disagrees")
+    plot_phase_diagram(res, png, title=f"Fig 3d (model): fig3-strip, damping {FIG3D_DAMPING}; "
+                       "paper's criterion, rings: companion disagrees")
     js = out / "fig3d.json"
     js.write_text(json.dumps(record(res.to_dict(), scene, fast=fast), indent=1))
     return [png, js]

@@ -8,7 +8,8 @@ impact (x = 3, We^1/2 = 1.5); D = x = 5 at We^1/2 = 2.0 (open and at rest under 
 criteria; that line's boundary at the default resolution is 2.75-2.81, measured), D' = the
 same run with S2 moved by 0.45 l_eg (equivalent to We^1/2 = 3.6, inside the encapsulation
 region) at t = 0.5 (~9 ms), the paper's secondary drop.
-Same damping as Fig 3d (0.1).
+Same damping, final time and resolution as Fig 3d (:func:`fig3d_resolution`: the edges
+every run of the diagram uses), so that the runs sit against that diagram's boundary.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 from elastocap.frames import frame_strip
 from elastocap.impact import run_impact
 from elastocap.paper_figures import record
-from elastocap.paper_figures.fig3d import FIG3D_DAMPING
+from elastocap.paper_figures.fig3d import FIG3D_DAMPING, FIG3D_T_MAX, fig3d_resolution
 from elastocap.scene import load_scene
 
 RUNS = {
@@ -34,12 +35,15 @@ RUNS = {
 def _scene(spec, fast):
     base = load_scene("fig3-strip")
     delta = base.spreading.delta(spec["we_sqrt"])
+    accuracy = "draft" if fast else "default"
+    res = fig3d_resolution(accuracy, fast=fast)
     over = {
         "drop.distance_from_end": spec["x"],
         "drop.wetted_length": delta,
         "effects.damping": FIG3D_DAMPING,
-        "numerics.t_max": 100.0,  # as Fig 3d: runs end at rest
-        "numerics.accuracy": "draft" if fast else "default",
+        "numerics.t_max": FIG3D_T_MAX,  # as Fig 3d: runs end at rest
+        "numerics.accuracy": accuracy,
+        **res.overrides(),  # the diagram's discretization
     }
     scene = base.with_overrides(over)
     if "s2_shift" in spec:

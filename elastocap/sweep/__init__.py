@@ -18,10 +18,23 @@ Quick use::
     res = run_sweep(scene, [1, 2, 3], we_sqrts=[0.5, 1.5, 2.5], store="sweep.sqlite",
                     refine_tol=0.05, workers=2)
     plot_phase_diagram(res, "phase.png")
+    df = load("sweep.sqlite")  # the runs as a pandas DataFrame (the 'export' extra)
+
+Every run of a sweep uses one discretization (:func:`sweep_resolutions`), recorded in the
+store; ``verify_levels=1`` re-runs every boundary bracket at 1.5x the edges and half the
+time step and reports whether it holds (see :mod:`elastocap.sweep.engine`).
 """
 
-from elastocap.sweep.engine import Sweep, SweepResult, run_sweep
+from elastocap.sweep.engine import (
+    MAX_LEVELS,
+    Resolution,
+    Sweep,
+    SweepResult,
+    run_sweep,
+    sweep_resolutions,
+)
 from elastocap.sweep.executors import MissingExtraError, SweepExecutor, open_executor
+from elastocap.sweep.export import export_runs, load
 from elastocap.sweep.grid import SkippedPoint, SweepPoint, grid_points, make_point, parse_range
 from elastocap.sweep.plot import load_experiments, plot_phase_diagram
 from elastocap.sweep.progress import NoProgress, TextProgress, TqdmProgress, make_progress
@@ -30,7 +43,12 @@ from elastocap.sweep.store import ResultStore, StoreError
 from elastocap.sweep.tasks import run_impact_task
 
 __all__ = [
+    "MAX_LEVELS",
     "Boundary",
+    "Resolution",
+    "export_runs",
+    "load",
+    "sweep_resolutions",
     "MissingExtraError",
     "NoProgress",
     "ResultStore",

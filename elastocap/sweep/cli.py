@@ -61,6 +61,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="bisect the boundary on each x line to a bracket narrower than "
         "TOL (in We^1/2, or Delta with --delta)",
     )
+    vgrp = parser.add_mutually_exclusive_group()
+    vgrp.add_argument(
+        "--verify",
+        action="store_true",
+        help="re-run both ends of every boundary bracket at 1.5x the edges and half the "
+        "time step; report per line whether the bracket holds, and how far it moves",
+    )
+    vgrp.add_argument(
+        "--converge",
+        type=int,
+        metavar="K",
+        help="as --verify, and where a bracket moves, locate it at the finer level and "
+        "verify that one at the next, up to K levels (1.5^K the edges)",
+    )
+    parser.add_argument(
+        "--export",
+        metavar="FILE",
+        help="also write every run of the store as a table: FILE.csv or FILE.parquet "
+        "(needs the 'export' extra: pandas, and pyarrow for parquet)",
+    )
     parser.add_argument("--out", metavar="DIR", help="output directory (default: out/sweep-SCENE)")
     parser.add_argument(
         "--experiments",
@@ -77,8 +97,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _validate(args):
     """Everything that can be refused, refused before any file is touched."""
-    from elastocap.sweep.engine import SWEPT_KEYS
+    from elastocap.sweep.engine import SWEPT_KEYS, check_verify_levels, plan_sweep, store_resolution
     from elastocap.sweep.executors import MissingExtraError, check_scheduler, check_workers
+    from elastocap.sweep.export import check_export
     from elastocap.sweep.grid import parse_range
     from elastocap.sweep.plot import load_experiments
     from elastocap.sweep.store import ResultStore, StoreError
@@ -114,26 +135,35 @@ def _validate(args):
             raise ValueError(str(err)) from None
     if args.refine is not None and not (args.refine > 0 and math.isfinite(args.refine)):
         raise ValueError(f"--refine: got {args.refine!r}; expected a finite number > 0")
+    levels = 0
+    if args.converge is not None:
+        levels = check_verify_levels(args.converge, minimum=1)
+    elif args.verify:
+        levels = 1
+    export = check_export(args.export) if args.export else None
     experiments = load_experiments(args.experiments) if args.experiments else None
     out = Path(args.out) if args.out else Path("out") / f"sweep-{scene.name}"
     store = Path(args.store) if args.store else out / "sweep.sqlite"
     # a file, or not writable: refused before any run
     check_output_folder(out, "--out")
     check_writable_file(store, "--store")
+    _, _, resolutions = plan_sweep(scene, xs, we_sqrts=we, deltas=delta, verify_levels=levels)
     try:
-        ResultStore.check(store)
+        ResultStore.check(store, store_resolution(resolutions))
     except StoreError as err:
         raise ValueError(f"--store: {err}") from None
-    return scene, xs, we, delta, experiments, out, store
+    return scene, xs, we, delta, experiments, out, store, levels, export
 
 
 def _print_text(rep: dict, files: list[str]) -> None:
     c = rep["counts"]
     var = "We^1/2" if rep["variable"] == "we_sqrt" else "Delta"
+    res = rep["resolution"]
     print(
         f"{rep['scene']}: {c['runs']} runs ({c['computed']} computed, {c['cached']} from the "
-        f"store), {c['skipped']} skipped, {c['failed']} failed, {c['disagreements']} where "
-        f"the criteria disagree; {rep['wall_time_s']:.1f} s on {rep['executor']}"
+        f"store), {c['skipped']} skipped, {c['failed']} failed, {c['undecided']} undecided, "
+        f"{c['disagreements']} where the criteria disagree; {rep['wall_time_s']:.1f} s on "
+        f"{rep['executor']}; resolution {res['n_edges']} edges, dt {res['dt']:.4g}"
     )
     for s in rep["skipped"][:5]:
         print(
@@ -144,7 +174,8 @@ def _print_text(rep: dict, files: list[str]) -> None:
     if c["skipped"] > 5:
         print(f"  ... {c['skipped'] - 5} more skipped (see --json)")
     for f in rep["failed"]:
-        print(f"  FAILED x = {f['x_over_leg']:.6g}, Delta = {f['wetted_length']:.6g}: {f['error']}")
+        print(f"  FAILED x = {f['x_over_leg']:.6g}, Delta = {f['wetted_length']:.6g} "
+              f"(level {f['level']}): {f['error']}")
     print(f"boundary in {var} (x in {rep['x_unit']}):")
     for b in rep["boundary"]:
         lo, hi = b["low"], b["high"]
@@ -163,9 +194,34 @@ def _print_text(rep: dict, files: list[str]) -> None:
                 f"[{t['low']:.6g}, {t['high']:.6g}] {t['outcome_low']}->{t['outcome_high']}"
                 for t in b["transitions"]
             )
+        if b["status"] in ("undecided", "failed"):
+            extra += f"  (decided runs: {b['decided_status']}"
+            if b["undecided"]:
+                extra += f"; {len(b['undecided'])} undecided, e.g. {b['undecided'][0]['reason']}"
+            if b["failed"]:
+                extra += f"; {len(b['failed'])} failed"
+            extra += ")"
+        if b.get("level"):
+            extra += f"  [level {b['level']}: {b['n_edges']} edges]"
+        v = b.get("verification")
+        if v is not None:
+            extra += "  " + _verification_text(v)
         print(f"  x = {b['x']:<8.6g} {b['status']:<17} {br}{extra}")
     for f in files:
         print(f"wrote {f}")
+
+
+def _verification_text(v: dict) -> str:
+    s = v["status"]
+    if s == "holds":
+        return "verified: holds at 1.5x the edges"
+    if s == "holds-at-finer":
+        return f"verified: holds from level {v['holds_at_level']} on (NOT at the sweep's)"
+    if s == "not-applicable":
+        return f"NOT verified: {v.get('reason', '')}"
+    if v.get("shift") is not None:
+        return f"NOT verified: {s}, the bracket midpoint moves by {v['shift']:+.4g}"
+    return f"NOT verified: {s}"
 
 
 def run(args) -> int:
@@ -174,7 +230,7 @@ def run(args) -> int:
     from elastocap.sweep.plot import plot_phase_diagram
     from elastocap.sweep.progress import make_progress
 
-    scene, xs, we, delta, experiments, out, store = _validate(args)
+    scene, xs, we, delta, experiments, out, store, levels, export = _validate(args)
     progress = make_progress(args.progress)
     result = run_sweep(
         scene,
@@ -186,6 +242,9 @@ def run(args) -> int:
         workers=args.workers,
         scheduler=args.scheduler,
         progress=progress,
+        verify_levels=levels,
+        overrides=list(args.overrides)
+        + ([f"numerics.accuracy={args.accuracy}"] if getattr(args, "accuracy", None) else []),
     )
     rep = jsonable(result.to_dict())
     out.mkdir(parents=True, exist_ok=True)
@@ -194,6 +253,11 @@ def run(args) -> int:
         plot_phase_diagram(rep, tmp, experiments=experiments)
     js = out / "sweep.json"
     files = [str(store), str(js), str(png)]
+    if export is not None:
+        from elastocap.sweep.export import export_runs
+
+        export_runs(store, export)
+        files.append(str(export))
     rep["files"] = files
     write_text(js, json.dumps(rep, indent=1))
     if getattr(args, "json", False):
@@ -202,8 +266,8 @@ def run(args) -> int:
         _print_text(rep, files)
     if rep["failed"]:
         print(
-            f"elastocap: {len(rep['failed'])} runs raised; they are not stored and will be "
-            "retried by the next run of the same sweep",
+            f"elastocap: {len(rep['failed'])} runs failed (recorded with the reason in the "
+            "store's failures table); the next run of the same sweep retries them",
             file=sys.stderr,
         )
         return 1

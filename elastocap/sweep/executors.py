@@ -9,6 +9,11 @@
   workers with ``--nthreads 1`` and ``NUMBA_NUM_THREADS=1`` in their environment.
 
 Workers only compute and return plain data; the process running the sweep writes the store.
+
+A local worker ends itself when the process that started it is gone (a thread polls the
+parent's pid every :data:`PARENT_POLL_S`): killing a sweep, even with SIGKILL, leaves no
+worker computing. A local pool whose worker died (killed, out of memory) is replaced by
+:meth:`SweepExecutor.restart`; the sweep then retries the runs that were in flight.
 """
 
 from __future__ import annotations
@@ -17,6 +22,9 @@ import contextlib
 import multiprocessing
 import os
 import sys
+import threading
+import time
+from collections.abc import Callable
 from concurrent.futures import Executor, ProcessPoolExecutor
 from dataclasses import dataclass
 
@@ -32,20 +40,33 @@ WORKER_ENV = {
 #: Futures kept in flight per worker slot: 2 keeps every worker fed while the sweep writes
 #: results, and bounds what a killed sweep loses to the runs actually executing.
 IN_FLIGHT_PER_SLOT = 2
+#: Seconds between a local worker's checks that its parent is alive (a check is one
+#: getppid call; 0.5 s bounds how long an orphaned worker keeps a core busy).
+PARENT_POLL_S = 0.5
 
 
 class MissingExtraError(ImportError):
     """An optional dependency is missing; the message names the extra to install."""
 
 
-def _init_worker() -> None:
+def _watch_parent(parent_pid: int) -> None:
+    while True:
+        if os.getppid() != parent_pid:  # re-parented: the sweep is gone
+            os._exit(1)
+        time.sleep(PARENT_POLL_S)
+
+
+def _init_worker(parent_pid: int | None = None) -> None:
     """Initializer of a local worker: runs before any task, so before numba is imported by
-    elastocap's run function."""
+    elastocap's run function. Starts the thread that ends the worker with its parent."""
     os.environ.update(WORKER_ENV)
     if "numba" in sys.modules:  # the parent's main script imported it at top level
         import numba
 
         numba.set_num_threads(1)
+    if parent_pid is not None:
+        threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
+                         name="elastocap-parent-watch").start()
 
 
 def worker_info() -> dict:
@@ -75,6 +96,17 @@ class SweepExecutor:
     executor: Executor
     slots: int
     description: str
+    #: Makes a fresh executor of the same kind (None: this one cannot be replaced).
+    factory: Callable[[], Executor] | None = None
+
+    def restart(self) -> bool:
+        """Replace a broken executor by a fresh one; False if it cannot be replaced."""
+        if self.factory is None:
+            return False
+        old = self.executor
+        self.executor = self.factory()
+        old.shutdown(wait=False, cancel_futures=True)
+        return True
 
     @property
     def max_in_flight(self) -> int:
@@ -136,12 +168,17 @@ def open_executor(workers: int | None = None, scheduler: str | None = None):
             client.close()
         return
     n = check_workers(workers)
-    pool = ProcessPoolExecutor(
-        max_workers=n,
-        mp_context=multiprocessing.get_context("spawn"),
-        initializer=_init_worker,
-    )
+
+    def factory():
+        return ProcessPoolExecutor(
+            max_workers=n,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_init_worker,
+            initargs=(os.getpid(),),
+        )
+
+    ex = SweepExecutor(factory(), n, f"local pool, {n} worker{'s' * (n != 1)}", factory)
     try:
-        yield SweepExecutor(pool, n, f"local pool, {n} worker{'s' * (n != 1)}")
+        yield ex
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        ex.executor.shutdown(wait=True, cancel_futures=True)

@@ -15,6 +15,20 @@ Guarantees and how they are met:
 * **Several sweeps may write concurrently.** WAL mode (readers never block the writer) and
   a busy timeout: writers queue for the write lock instead of failing. Only the process
   that orchestrates a sweep writes; workers (local or on a cluster) return plain data.
+* **Two sweeps never compute the same run.** Before a run is submitted its key is claimed
+  in the ``claims`` table (owner, pid, host and a lease, renewed while the run is in
+  flight) in the same transaction that finds it missing from ``runs``; another sweep
+  waits for a claimed run instead of computing it, and takes the claim over when its lease
+  has expired or its owner (on this host) is no longer alive.
+* **Failures are recorded, not hidden.** A run that raised, or whose worker died on every
+  attempt, is written to ``failures`` with the reason; it is not a result, so a later
+  sweep tries it again (and a success replaces the failure).
+* **One resolution per store.** ``meta`` records the discretization of the sweep that made
+  the store (edges and time step of its base level); a sweep at another base resolution is
+  refused before anything is written (:meth:`ResultStore.check`). Runs of the finer
+  verification levels carry their ``level``, ``n_edges`` and ``dt`` in their rows.
+* **Refused input writes nothing.** :meth:`ResultStore.check` opens an existing file
+  without creating ``-wal`` / ``-shm`` files (``immutable`` when none exist).
 
 WAL needs a local file system (not NFS); put the store on a local disk.
 """
@@ -25,6 +39,7 @@ import contextlib
 import datetime as _dt
 import json
 import math
+import os
 import socket
 import sqlite3
 import time
@@ -32,10 +47,12 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["COLUMNS", "SCHEMA_VERSION", "ResultStore", "StoreError"]
+__all__ = ["COLUMNS", "OUTCOMES", "SCHEMA_VERSION", "ResultStore", "StoreError"]
 
 #: Bump when the table layout changes; a store with another version is refused.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+#: The outcome classes of a run ("undecided" carries a ``reason``).
+OUTCOMES = ("open", "encapsulated", "undecided")
 #: Seconds a writer waits for the write lock held by another sweep before failing: one
 #: transaction takes milliseconds, so 60 s only trips on a stuck writer.
 BUSY_TIMEOUT_S = 60.0
@@ -52,7 +69,11 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("x_over_leg", "REAL NOT NULL"),
     ("we_sqrt", "REAL"),
     ("wetted_length", "REAL NOT NULL"),
+    ("level", "INTEGER NOT NULL"),
+    ("n_edges", "INTEGER"),
+    ("dt", "REAL"),
     ("outcome", "TEXT NOT NULL"),
+    ("reason", "TEXT"),
     ("companion_outcome", "TEXT NOT NULL"),
     ("final_measure", "REAL"),
     ("companion_measure", "REAL"),
@@ -71,6 +92,22 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 )
 _NAMES = tuple(c for c, _ in COLUMNS)
 _KEY = ("scene_digest", "version", "code_digest", "runner")
+#: Columns of ``failures``: the run's key and point, and why it has no result.
+FAILURE_COLUMNS: tuple[tuple[str, str], ...] = (
+    *COLUMNS[:4],
+    ("scene_name", "TEXT NOT NULL"),
+    ("x", "REAL NOT NULL"),
+    ("x_over_leg", "REAL NOT NULL"),
+    ("we_sqrt", "REAL"),
+    ("wetted_length", "REAL NOT NULL"),
+    ("level", "INTEGER NOT NULL"),
+    ("error", "TEXT NOT NULL"),
+    ("attempts", "INTEGER NOT NULL"),
+    ("host", "TEXT"),
+    ("created_utc", "TEXT NOT NULL"),
+)
+_FNAMES = tuple(c for c, _ in FAILURE_COLUMNS)
+_KEY_WHERE = " AND ".join(f"{k} = ?" for k in _KEY)
 
 
 class StoreError(ValueError):
@@ -83,7 +120,39 @@ def _schema_sql() -> str:
         "CREATE TABLE IF NOT EXISTS runs (\n  id INTEGER PRIMARY KEY,\n  "
         f"{cols},\n  UNIQUE ({', '.join(_KEY)})\n);\n"
         "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);\n"
+        "CREATE TABLE IF NOT EXISTS failures (\n  "
+        + ",\n  ".join(f"{n} {t}" for n, t in FAILURE_COLUMNS)
+        + f",\n  PRIMARY KEY ({', '.join(_KEY)})\n);\n"
+        "CREATE TABLE IF NOT EXISTS claims (\n  "
+        + ",\n  ".join(f"{n} {t}" for n, t in COLUMNS[:4])
+        + ",\n  owner TEXT NOT NULL,\n  pid INTEGER NOT NULL,\n  host TEXT NOT NULL,\n"
+        f"  lease_until REAL NOT NULL,\n  PRIMARY KEY ({', '.join(_KEY)})\n);\n"
     )
+
+
+#: What must agree between a store's recorded resolution and a sweep's.
+RESOLUTION_KEYS = ("n_edges", "dt", "integrator")
+
+
+def _same_resolution(path, stored: dict, wanted: dict) -> None:
+    diff = [k for k in RESOLUTION_KEYS if stored.get(k) != wanted.get(k)]
+    if diff:
+        have = ", ".join(f"{k} = {stored.get(k)!r}" for k in RESOLUTION_KEYS)
+        want = ", ".join(f"{k} = {wanted.get(k)!r}" for k in RESOLUTION_KEYS)
+        raise StoreError(
+            f"store {str(path)!r}: made at {have}, this sweep runs at {want}; one store "
+            "holds one resolution: give another --store, or --set numerics.n_edges="
+            f"{stored.get('n_edges')} (and numerics.dt) to add to this one")
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, someone else's
+        return True
+    return True
 
 
 def _utc_now() -> str:
@@ -133,16 +202,26 @@ class ResultStore:
             ) from None
 
     @staticmethod
-    def check(path: str | Path) -> None:
-        """Refuse an existing file that is not a usable store, without writing anything (a
-        missing file is fine: it will be created)."""
+    def _open_readonly(path: Path) -> sqlite3.Connection:
+        """A read-only connection that creates no file: read-only on the live WAL when a
+        writer has it open (its -wal and -shm exist), else ``immutable`` (SQLite then
+        neither locks nor creates -wal / -shm)."""
+        uri = path.resolve().as_uri()
+        live = Path(f"{path}-wal").exists() and Path(f"{path}-shm").exists()
+        return sqlite3.connect(f"{uri}?mode=ro" if live else f"{uri}?immutable=1", uri=True)
+
+    @staticmethod
+    def check(path: str | Path, resolution: dict | None = None) -> None:
+        """Refuse an existing file that is not a usable store, or whose recorded resolution
+        differs from ``resolution`` (see :meth:`ensure_resolution`), without writing
+        anything (a missing file is fine: it will be created)."""
         path = Path(path)
         if not path.exists():
             return
         if not path.is_file():
             raise StoreError(f"store {str(path)!r}: not a file; give a file name")
         try:
-            con = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+            con = ResultStore._open_readonly(path)
             try:
                 tables = {r[0] for r in con.execute(
                     "SELECT name FROM sqlite_master WHERE type = 'table'")}
@@ -156,6 +235,11 @@ class ResultStore:
                         raise StoreError(
                             f"store {str(path)!r}: schema version {row and row[0]}, this "
                             f"elastocap writes version {SCHEMA_VERSION}; give a new file")
+                    if resolution is not None:
+                        row = con.execute(
+                            "SELECT value FROM meta WHERE key = 'resolution'").fetchone()
+                        if row is not None:
+                            _same_resolution(path, json.loads(row[0]), resolution)
             finally:
                 con.close()
         except sqlite3.DatabaseError as err:
@@ -207,16 +291,38 @@ class ResultStore:
         con.execute("COMMIT")
 
     # -------------------------------------------------------------------------- writing
-    def put(self, row: dict) -> bool:
+    def ensure_resolution(self, resolution: dict) -> None:
+        """Record the sweep's base resolution (``n_edges``, ``dt``, ``integrator``, and
+        anything else given) in a new store; refuse (:class:`StoreError`) a store made at
+        another one."""
+        with self._transaction() as con:
+            row = con.execute("SELECT value FROM meta WHERE key = 'resolution'").fetchone()
+            if row is None:
+                con.execute("INSERT INTO meta VALUES ('resolution', ?)",
+                            (json.dumps(resolution, sort_keys=True),))
+            else:
+                _same_resolution(self.path, json.loads(row[0]), resolution)
+
+    def resolution(self) -> dict | None:
+        """The base resolution recorded by :meth:`ensure_resolution` (None if none yet)."""
+        row = self._con.execute("SELECT value FROM meta WHERE key = 'resolution'").fetchone()
+        return None if row is None else json.loads(row[0])
+
+    def put(self, row: dict, owner: str | None = None) -> bool:
         """Write one run in its own transaction. Returns False if the key was already stored
         (by this or another sweep): the stored row is kept, nothing is written. A missing
-        ``code_digest`` is stored as "" (run functions without a code identity)."""
-        row = {"code_digest": "", **row}
+        ``code_digest`` is stored as "" (run functions without a code identity), a missing
+        ``level`` as 0. The run's claim by ``owner`` and any recorded failure of it are
+        removed in the same transaction."""
+        row = {"code_digest": "", "level": 0, **row}
         missing = [
             n for n, t in COLUMNS if "NOT NULL" in t and n != "created_utc" and row.get(n) is None
         ]
         if missing:
             raise ValueError(f"row: missing {', '.join(missing)}")
+        for k in ("outcome", "companion_outcome"):
+            if row[k] not in OUTCOMES:
+                raise ValueError(f"row: {k} {row[k]!r}; expected one of {', '.join(OUTCOMES)}")
         vals = dict(row)
         vals["final_positions"] = _encode_positions(vals.get("final_positions"))
         if isinstance(vals.get("settings_json"), dict):
@@ -233,9 +339,103 @@ class ResultStore:
             f"INSERT OR IGNORE INTO runs ({', '.join(_NAMES)}) VALUES "
             f"({', '.join('?' for _ in _NAMES)})"
         )
+        key = tuple(vals[k] for k in _KEY)
         with self._transaction() as con:
             cur = con.execute(sql, tuple(vals.get(n) for n in _NAMES))
+            con.execute(f"DELETE FROM failures WHERE {_KEY_WHERE}", key)
+            if owner is not None:
+                con.execute(f"DELETE FROM claims WHERE {_KEY_WHERE} AND owner = ?", (*key, owner))
             return cur.rowcount == 1
+
+    def record_failure(self, row: dict, owner: str | None = None) -> None:
+        """Record that a run has no result (``error`` says why; ``attempts`` how often it
+        was tried), replacing an earlier failure of it, and drop ``owner``'s claim."""
+        vals = {"code_digest": "", "level": 0, "attempts": 1, **row}
+        vals.setdefault("host", socket.gethostname())
+        vals["created_utc"] = vals.get("created_utc") or _utc_now()
+        missing = [n for n, t in FAILURE_COLUMNS
+                   if "NOT NULL" in t and n != "created_utc" and vals.get(n) is None]
+        if missing:
+            raise ValueError(f"failure: missing {', '.join(missing)}")
+        key = tuple(vals[k] for k in _KEY)
+        with self._transaction() as con:
+            con.execute(f"INSERT OR REPLACE INTO failures ({', '.join(_FNAMES)}) VALUES "
+                        f"({', '.join('?' for _ in _FNAMES)})", tuple(vals[n] for n in _FNAMES))
+            if owner is not None:
+                con.execute(f"DELETE FROM claims WHERE {_KEY_WHERE} AND owner = ?", (*key, owner))
+
+    def claim(self, digests, version: str, runner: str, code_digest: str, owner: str,
+              lease_s: float) -> tuple[dict, set, set]:
+        """Claim the runs ``digests`` for ``owner`` in one transaction.
+
+        Returns
+        -------
+        stored : dict digest -> row
+            Already in ``runs`` (nothing to do).
+        mine : set of digest
+            Claimed now by ``owner`` (new claims, claims ``owner`` already held, and claims
+            taken over: lease expired, or the owning process on this host is gone).
+        theirs : set of digest
+            Held by another live owner: wait for its row (see :meth:`get_many`).
+        """
+        digests = list(dict.fromkeys(digests))
+        host, pid, now = socket.gethostname(), os.getpid(), time.time()
+        stored: dict[str, dict] = {}
+        mine: set[str] = set()
+        theirs: set[str] = set()
+        with self._transaction() as con:
+            for i in range(0, len(digests), 500):
+                chunk = digests[i : i + 500]
+                qs = ", ".join("?" for _ in chunk)
+                cur = con.execute(
+                    "SELECT * FROM runs WHERE version = ? AND runner = ? AND code_digest = ? "
+                    f"AND scene_digest IN ({qs})", (version, runner, code_digest, *chunk))
+                for r in self._rows(cur):
+                    stored[r["scene_digest"]] = r
+                held = {r[0]: r[1:] for r in con.execute(
+                    "SELECT scene_digest, owner, pid, host, lease_until FROM claims WHERE "
+                    f"version = ? AND runner = ? AND code_digest = ? AND scene_digest IN ({qs})",
+                    (version, runner, code_digest, *chunk))}
+                for d in chunk:
+                    if d in stored:
+                        continue
+                    h = held.get(d)
+                    if h is not None and h[0] != owner and h[3] > now and not (
+                            h[2] == host and not _pid_alive(h[1])):
+                        theirs.add(d)
+                        continue
+                    con.execute(
+                        "INSERT OR REPLACE INTO claims VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                        (d, version, code_digest, runner, owner, pid, host, now + lease_s))
+                    mine.add(d)
+        return stored, mine, theirs
+
+    def renew(self, digests, version: str, runner: str, code_digest: str, owner: str,
+              lease_s: float) -> None:
+        """Extend ``owner``'s leases on ``digests`` to now + ``lease_s``."""
+        until = time.time() + lease_s
+        with self._transaction() as con:
+            con.executemany(
+                "UPDATE claims SET lease_until = ? WHERE scene_digest = ? AND version = ? AND "
+                "runner = ? AND code_digest = ? AND owner = ?",
+                [(until, d, version, runner, code_digest, owner) for d in digests])
+
+    def release(self, owner: str) -> None:
+        """Drop every claim ``owner`` still holds (a sweep that ends or is interrupted)."""
+        with self._transaction() as con:
+            con.execute("DELETE FROM claims WHERE owner = ?", (owner,))
+
+    def claims(self) -> list[dict]:
+        """The claims table (for diagnostics and tests)."""
+        cur = self._con.execute("SELECT * FROM claims ORDER BY lease_until")
+        names = [d[0] for d in cur.description]
+        return [dict(zip(names, r, strict=True)) for r in cur.fetchall()]
+
+    def failures(self) -> list[dict]:
+        """Recorded failures (runs without a result), oldest first."""
+        cur = self._con.execute("SELECT * FROM failures ORDER BY created_utc")
+        names = [d[0] for d in cur.description]
+        return [dict(zip(names, r, strict=True)) for r in cur.fetchall()]
 
     # -------------------------------------------------------------------------- reading
     def _rows(self, cur) -> list[dict]:

@@ -27,7 +27,10 @@ __all__ = [
 #: What a run function returns (the store's per-run result columns).
 RESULT_KEYS = (
     "outcome",
+    "reason",
     "companion_outcome",
+    "n_edges",
+    "dt",
     "final_measure",
     "companion_measure",
     "t_end",
@@ -141,7 +144,9 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
     -------
     dict
         :data:`RESULT_KEYS`; ``final_positions`` is the final shape (n + 1, 2) in scene
-        units, ``outcome`` the paper's lab-frame criterion, ``companion_outcome``
+        units, ``outcome`` the paper's lab-frame criterion ("open", "encapsulated" or
+        "undecided", the last with its ``reason``), ``n_edges`` and ``dt`` the
+        discretization the run used, ``companion_outcome``
         :func:`elastocap.criteria.companion_outcome`, ``version`` and ``code_digest`` the
         worker's (checked against the sweep's: a cluster must run the same code).
     """
@@ -156,9 +161,14 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
     res = run_impact(scene)
     final = res.simulation.positions[-1]
     comp = companion_outcome(final, scene)
+    settings = dict(res.settings)
     return {
         "outcome": res.outcome,
+        # an undecided run says why (None for a decided one)
+        "reason": getattr(res, "reason", None),
         "companion_outcome": comp.outcome,
+        "n_edges": settings.get("n_edges"),
+        "dt": settings.get("dt"),
         "final_measure": res.final_measure,
         "companion_measure": comp.measure,
         "t_end": res.t_end,
@@ -170,7 +180,7 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
         "interface_crossing_time": res.interface_crossing_time,
         "decided_after_crossing": res.decided_after_crossing,
         "final_positions": final.copy(),
-        "settings_json": json.dumps(res.settings, sort_keys=True),
+        "settings_json": json.dumps(settings, sort_keys=True, default=str),
         "version": __version__,
         "code_digest": loaded_code_fingerprint(),
     }

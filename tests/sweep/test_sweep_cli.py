@@ -36,6 +36,12 @@ BASE = ["--progress", "none", "--workers", "2", "--set", "numerics.accuracy=draf
          "--scheduler: got 'localhost'; expected a dask scheduler address"),
         (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--experiments", "missing.csv"],
          "--experiments: got 'missing.csv'; no such file"),
+        (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--converge", "0"],
+         "--converge: got 0; expected an integer from 1 to 4"),
+        (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--verify", "--converge", "2"],
+         "not allowed with argument"),
+        (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--export", "r.txt"],
+         "--export: got 'r.txt'; expected a file name ending in .csv or .parquet"),
         (["fig3-strip", "--x", "1:3:2"], "one of the arguments --we --delta is required"),
         (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--delta", "1:2:2"],
          "not allowed with argument"),
@@ -85,6 +91,9 @@ def test_json_run_has_runs_and_boundary(tmp_path, capsys):
         if b["status"] == "bracketed":
             assert b["we_sqrt_high"] - b["we_sqrt_low"] <= 1.0
     assert rep["x_unit"] == "l_eg" and rep["variable"] == "we_sqrt"
+    # every --set override is recorded (and drawn in the plot's title from it)
+    assert rep["overrides"] == ["numerics.accuracy=draft", "numerics.t_max=5.0"]
+    assert rep["resolution"]["n_edges"] == 80  # draft at the largest Delta (We^1/2 = 3)
     for f in ("sweep.sqlite", "sweep.json", "phase-diagram.png"):
         assert (out / f).stat().st_size > 0
     assert json.loads((out / "sweep.json").read_text())["runs"] == rep["runs"]

@@ -33,7 +33,7 @@ def _line(ax, label):
 def test_markers_boundary_and_disagreements(tmp_path):
     fig = plot_phase_diagram(_report(), tmp_path / "p.png")
     ax = fig.axes[0]
-    opn, enc = _line(ax, "not encapsulated"), _line(ax, "encapsulated")
+    opn, enc = _line(ax, "not encapsulated (4)"), _line(ax, "encapsulated (2)")
     assert len(opn.get_xdata()) == 4 and opn.get_markerfacecolor() == "none"
     assert len(enc.get_xdata()) == 2
     dis = _line(ax, "companion criterion disagrees")
@@ -46,6 +46,35 @@ def test_markers_boundary_and_disagreements(tmp_path):
     np.testing.assert_allclose([s[1][0] - s[0][0] for s in segs], [0.2, 0.3])
     assert ax.get_ylabel() == "x / ℓ_eg" and "We" in ax.get_xlabel()
     assert (tmp_path / "p.png").stat().st_size > 1000
+    assert eb.get_label() == "boundary (not verified: run with --verify) (2)"
+    assert not [ln for ln in ax.get_lines() if ln.get_label().startswith("undecided")]
+
+
+def test_undecided_failed_verified_and_the_overrides_in_the_title():
+    rep = _report()
+    rep["runs"][1].update(outcome="undecided", companion_outcome="undecided")
+    rep["runs"].append({**rep["runs"][0], "level": 1, "outcome": "encapsulated"})
+    rep["failed"] = [{"x_over_leg": 2.0, "we_sqrt": 3.0, "wetted_length": 4.0, "level": 0,
+                      "error": "BrokenProcessPool"}]
+    rep["boundary"][0].update(status="undecided", decided_status="bracketed")
+    rep["boundary"][1].update(verified=True)
+    rep.update(verify_levels=1, overrides=["numerics.accuracy=draft", "effects.damping=0.1"],
+               resolution={"n_edges": 77, "dt": 0.0125}, criterion="outcome")
+    ax = plot_phase_diagram(rep).axes[0]
+    und = _line(ax, "undecided (1)")
+    assert (list(und.get_xdata()), list(und.get_ydata())) == ([1.5], [1.0])
+    assert _line(ax, "not encapsulated (3)") and _line(ax, "encapsulated (2)")  # level 0 only
+    fl = _line(ax, "failed, no result (1)")
+    assert (list(fl.get_xdata()), list(fl.get_ydata())) == ([3.0], [2.0])
+    labels = {c.get_label(): c for c in ax.containers}
+    ver = labels["boundary, verified (bracket holds at 1.5x edges) (1)"]
+    np.testing.assert_allclose(np.asarray(ver.lines[0].get_ydata(), float), [2.0])
+    unc = labels["decided runs' bracket; line has undecided/failed runs (1)"]
+    np.testing.assert_allclose(np.asarray(unc.lines[0].get_ydata(), float), [1.0])
+    title = ax.get_title()
+    assert "--set numerics.accuracy=draft, effects.damping=0.1" in title
+    assert "77 edges, dt 0.0125" in title and "verified to level 1" in title
+    assert "+ 1 verification runs" in title
 
 
 def test_experimental_points_from_csv(tmp_path):

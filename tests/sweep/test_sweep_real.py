@@ -28,7 +28,8 @@ SCENE = load_scene("fig3-strip", OVERRIDES)
 def _table(store_path) -> dict:
     with ResultStore(store_path) as st:
         return {r["scene_digest"]: (r["outcome"], r["companion_outcome"], r["final_measure"],
-                                    r["companion_measure"], r["steps"], r["t_end"], r["status"])
+                                    r["companion_measure"], r["steps"], r["t_end"], r["status"],
+                                    r["reason"], r["level"], r["n_edges"], r["dt"])
                 for r in st.rows()}
 
 
@@ -50,13 +51,18 @@ def test_real_sweep_records_what_run_impact_returns(tmp_path):
     assert len(rows) == 4
     # one point re-run here, in-process: the stored row is that run, field by field
     r = next(r for r in rows if r["x"] == 2.0 and r["we_sqrt"] == 3.0)
+    # one resolution for the sweep: the draft preset at the largest Delta (We^1/2 = 3,
+    # Delta = 1.4447): ceil(8 L / Delta) = ceil(79.19) = 80 edges, on every run
+    assert {q["n_edges"] for q in rows} == {80} and res.resolutions[0].n_edges == 80
     sc = SCENE.with_overrides({"drop.distance_from_end": 2.0,
-                               "drop.wetted_length": SCENE.spreading.delta(3.0)})
+                               "drop.wetted_length": SCENE.spreading.delta(3.0),
+                               "numerics.n_edges": 80})
     assert sc.digest() == r["scene_digest"] and json.loads(r["scene_json"]) == sc.data
     direct = run_impact(sc)
     assert (r["outcome"], r["final_measure"], r["steps"], r["t_end"], r["status"]) == (
         direct.outcome, direct.final_measure, direct.steps, direct.t_end, direct.status)
     assert r["rod_crossing_time"] == direct.rod_crossing_time
+    assert (r["n_edges"], r["dt"]) == (direct.settings["n_edges"], direct.settings["dt"])
     np.testing.assert_array_equal(r["final_positions"], direct.simulation.positions[-1])
     comp = companion_outcome(r["final_positions"], sc)
     assert (r["companion_outcome"], r["companion_measure"]) == (comp.outcome, comp.measure)

@@ -161,7 +161,8 @@ def test_delta_sweep_skips_points_off_the_rod_and_reports_progress(tmp_path, poo
     assert lines[0].startswith("sweep: 1/3 runs") and lines[-1].startswith("sweep: 3/3 runs")
     rep = res.to_dict()
     assert rep["counts"] == {"runs": 3, "computed": 3, "cached": 0, "skipped": 1, "failed": 0,
-                             "disagreements": 0}
+                             "undecided": 0, "disagreements": 0, "verification": None,
+                             "outcomes": {"open": 3, "encapsulated": 0, "undecided": 0}}
     json.dumps(rep)  # plain data
 
 

@@ -70,7 +70,7 @@ def test_other_schema_and_non_sqlite_files_are_refused(tmp_path):
     con.execute("UPDATE meta SET value = '99' WHERE key = 'schema_version'")
     con.commit()
     con.close()
-    with pytest.raises(StoreError, match="schema version 99, this elastocap writes version 1"):
+    with pytest.raises(StoreError, match="schema version 99, this elastocap writes version 2"):
         ResultStore(p)
     with pytest.raises(StoreError, match="schema version 99"):
         ResultStore.check(p)
