@@ -226,6 +226,7 @@ def test_figures_only_one_leaves_the_others(tmp_path, monkeypatch, capsys):
     writes = {"a": ["a.png", "a-old.json"], "b": ["b.png"]}
 
     def fake(out, only=None, fast=False):
+        out.mkdir(parents=True, exist_ok=True)  # as run_figures does
         for n in writes[only]:
             (out / n).write_text(only)
         return {only: [out / n for n in writes[only]]}
