@@ -9,7 +9,6 @@ store's columns (:data:`elastocap.sweep.store.COLUMNS`; the final shape only wit
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from elastocap.io import atomic_path
