@@ -77,8 +77,11 @@ def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
     ends: ``"smooth_fold"``, ``"contact_fold"``, ``"kind_change"``); ``open_change`` /
     ``wrapped_change``: the difference between the two
     resolutions (after raising both to Delta0: below it every impact finds the state) and
-    ``open_settled`` / ``wrapped_settled``: it is at most ``tol``; ``folds``: the located
-    folds at the coarse resolution; ``wall_time_s``."""
+    ``open_settled`` / ``wrapped_settled``: it is at most ``tol``; the same for
+    ``deposition_end`` (the static prediction: where the state a quasi-static spreading
+    lands on, traced up from the deposition at Delta = 0.6, stops existing or being stable,
+    :func:`elastocap.strip.trace.open_branch_end`); ``folds``: the located folds at the
+    coarse resolution; ``wall_time_s``."""
     w = bs.window
     lo, hi = bs.prange
     row = {"x": float(x), "n": [bs.n, bs.metadata["n_edges_refined"]],
@@ -90,13 +93,16 @@ def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
            "wall_time_s": bs.metadata["wall_time_s"]}
     d0 = spreading.delta0
     for side, key, wkey in (("open", "open_max", "open_max"),
-                            ("wrapped", "wrapped_min", "encapsulated_min")):
+                            ("wrapped", "wrapped_min", "encapsulated_min"),
+                            ("deposition", "deposition_end", "open_branch_end")):
         coarse, fine = w[wkey]["value"], w[wkey].get("value_refined")
         v = fine if fine is not None else math.nan
         row[key] = v
         row[f"{key}_coarse"] = coarse if coarse is not None else math.nan
         row[f"{key}_we_sqrt"] = spreading.we_sqrt(v) if math.isfinite(v) else math.nan
         how = w[wkey].get("how_refined") or w[wkey].get("how")
+        if side == "deposition":
+            row["deposition_how"] = how
         at_bound = math.isfinite(v) and (abs(v - lo) < 1e-9 or abs(v - hi) < 1e-9)
         row[f"{side}_end"] = "scan_limit" if at_bound else how
         if coarse is None or fine is None:
@@ -142,6 +148,14 @@ def _draw_static(ax, rows, sp, w_min):
                     mfc=color if settled else "white", mew=1.3,
                     label=lab.format(n=rows[0]["n"][-1]) if k == 0 else None)
             k += 1
+    dep = [(max(r["deposition_end_we_sqrt"], w_min), r["x"], r["deposition_settled"])
+           for r in rows if math.isfinite(r.get("deposition_end_we_sqrt", math.nan))]
+    if dep:
+        ax.plot([p[0] for p in dep], [p[1] for p in dep], "k-", lw=1.2, alpha=0.8)
+        for i, (w, x, settled) in enumerate(dep):
+            ax.plot(w, x, "D", color="k", ms=5, mfc="k" if settled else "white",
+                    label="static prediction: the deposited open state is lost"
+                    if i == 0 else None)
     ax.plot([], [], "s", mfc="white", mec="0.3", ms=6,
             label=f"hollow: unsettled (n = {rows[0]['n'][-2] if len(rows[0]['n']) > 1 else '-'}"
                   f" vs {rows[0]['n'][-1]} differ by > {TOL_DELTA} in " + r"$\Delta$)")
@@ -230,7 +244,8 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
     unsettled = [{"x": r["x"], "end": side, "n": r["n"], "change": r[f"{side}_change"],
                   "values": [r[f"{key}_coarse"], r[key]]}
                  for r in rows for side, key in (("open", "open_max"),
-                                                 ("wrapped", "wrapped_min"))
+                                                 ("wrapped", "wrapped_min"),
+                                                 ("deposition", "deposition_end"))
                  if not r[f"{side}_settled"]]
     data = {
         "rows": rows,

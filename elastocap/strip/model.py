@@ -379,11 +379,9 @@ class DiscreteStrip:
                 # lambda is translation invariant: only the wet edges i1 .. i1+m-2 act.
                 # X_{i1+a} - X_{i1} = h sum_{i1 <= j < i1+a} (cos, sin) theta_j
                 J = np.zeros((2 * m, m - 1))
-                for a in range(1, m):
-                    for b in range(a):
-                        j = i1 + b
-                        J[2 * a, b] = -h * sn[j]
-                        J[2 * a + 1, b] = h * cs[j]
+                low = np.tri(m, m - 1, -1)  # entry (a, b) is 1 for b < a
+                J[0::2] = -h * low * sn[i1 : i1 + m - 1]
+                J[1::2] = h * low * cs[i1 : i1 + m - 1]
                 cols = 1 + i1 + np.arange(m - 1)
                 Hc = J.T @ HX @ J
                 H[np.ix_(cols, cols)] += 0.5 * (Hc + Hc.T)  # symmetric to the last bit

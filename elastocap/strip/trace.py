@@ -90,6 +90,7 @@ from elastocap.strip.model import (
     point_measures,
 )
 from elastocap.strip.solve import (
+    R_REL,
     Equilibrium,
     open_state,
     solve_equilibrium,
@@ -98,8 +99,8 @@ from elastocap.strip.solve import (
 )
 
 __all__ = ["CHORD_STOP", "DEFAULTS", "NOT_HANDLED", "ActiveSetEvent", "BranchSegment",
-           "ContactBranchSet", "DiscreteBranch", "active_set_problem", "solved_crossings",
-           "trace_contact_branches", "trace_discrete_branch"]
+           "ContactBranchSet", "DiscreteBranch", "active_set_problem", "open_branch_end",
+           "solved_crossings", "trace_contact_branches", "trace_discrete_branch"]
 
 # Difference step of dF/dDelta (length): eps^(1/3) ~ 6e-6 balances truncation against
 # rounding. The capillary force is piecewise smooth in Delta: its slope jumps where a
@@ -453,10 +454,25 @@ def _event_function(strip, tools, guard, v0, p0):
 
 
 def _tangent(prob, v, p, orient):
-    """Null vector (dv/ds, dDelta/ds) of [dF/dv, dF/dDelta] at (v, p), with orient . t > 0."""
-    J = np.column_stack([prob.jacobian(v, p), prob.dfdp(v, p)])
-    _U, _s, Vt = np.linalg.svd(J)
-    t = Vt[-1]
+    """Null vector (dv/ds, dDelta/ds) of [dF/dv, dF/dDelta] at (v, p), with orient . t > 0.
+
+    One LU solve dF/dv w = -dF/dDelta, t = (w, 1) / |(w, 1)|, where dF/dv is regular (a
+    restart point is no fold of the new contact set, generically); the SVD of the bordered
+    matrix otherwise (4-6x the cost at n = 200).
+    """
+    Jv, fp = prob.jacobian(v, p), prob.dfdp(v, p)
+    t = None
+    try:
+        w = np.linalg.solve(Jv, -fp)
+        if np.all(np.isfinite(w)) and np.linalg.norm(Jv @ w + fp) <= 1e-8 * (
+                np.linalg.norm(fp) + np.linalg.norm(Jv, np.inf) * np.linalg.norm(w)):
+            t = np.append(w, 1.0)
+            t /= np.linalg.norm(t)
+    except np.linalg.LinAlgError:
+        t = None
+    if t is None:
+        _U, _s, Vt = np.linalg.svd(np.column_stack([Jv, fp]))
+        t = Vt[-1]
     return -t if float(orient(t)) < 0.0 else t
 
 
@@ -522,12 +538,16 @@ def _collect(strip, active, prob, tools, br, values):
     if stopped:
         I.append(_index(prob, ev_sp.u, ev_sp.p))
     U, R, E, IS = [], [], [], []
-    for v, p in zip(V, P, strict=True):
+    for v, p, idx in zip(V, P, I, strict=True):
         s = cache.at(p)
         u, r = split(v)
         U.append(u.copy())
         R.append(r)
         E.append(s.energy(u))
+        if np.all(r[active] > R_REL * s.q * s.h):
+            # every held contact is strongly active: the two tangent spaces are the same
+            IS.append(idx)
+            continue
         eq = Equilibrium(u=u, energy=E[-1], parts={}, reactions=np.maximum(r, 0.0),
                          active=active.copy(), residual=0.0, iterations=0,
                          status="converged", message="")
@@ -814,27 +834,106 @@ class ContactBranchSet:
         }
 
     def save(self, out_dir) -> list:
-        """Write ``branch_K.npz`` per branch (points, states, metadata) and ``branches.json``."""
+        """Write ``branch_K.npz`` per traced direction (points, states, contact sets,
+        metadata) and ``branches.json`` (the summary and the contact events); each file is
+        written to a temporary name and renamed (atomic). :meth:`load` reads them back."""
         import json
+        import os
 
         from elastocap.jsonutil import jsonable
 
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = []
-        meta = json.dumps(jsonable({**self.metadata, "scene": self.scene.data}))
+        meta = json.dumps(jsonable({**self.metadata, "scene": self.scene.data,
+                                    "scene_name": self.scene.name}))
         for k, (br, pts) in enumerate(zip(self.branches, self.points, strict=True)):
             u = np.concatenate([s.u for s in br.segments]) if br.segments else np.empty(0)
             held = (np.concatenate([np.repeat(s.active[None], s.delta.size, 0)
                                     for s in br.segments]) if br.segments else np.empty(0))
             p = out / f"branch_{k}.npz"
-            np.savez(p, u=u, held=held, label=self.labels[k], metadata=meta,
+            tmp = out / f".branch_{k}.tmp.npz"
+            sizes = np.array([s.delta.size for s in br.segments], dtype=int)
+            np.savez(tmp, u=u, held=held, label=self.labels[k], metadata=meta,
+                     status=br.status, message=br.message, segment_sizes=sizes,
                      **{key: np.asarray(v) for key, v in pts.items()})
+            os.replace(tmp, p)
             paths.append(p)
         js = out / "branches.json"
-        js.write_text(json.dumps(jsonable(self.summary()), indent=2))
+        tmp = out / ".branches.json.tmp"
+        tmp.write_text(json.dumps(jsonable({**self.summary(), "event_list": self.events,
+                                            "prange": list(self.prange), "n": self.n}),
+                                  indent=2))
+        os.replace(tmp, js)
         paths.append(js)
         return paths
+
+    @classmethod
+    def load(cls, out_dir) -> ContactBranchSet:
+        """The branch set :meth:`save` wrote to ``out_dir``.
+
+        Points, states, contact sets, special points, window, events and metadata come
+        back as saved; each traced direction is one :class:`DiscreteBranch` with its
+        segments (points, states, contact set, index) and its events as the dicts of
+        ``events``; the continuation's raw output, the reactions and the segments' folds are
+        not saved (``branch`` and ``event`` are None).
+        """
+        import json
+
+        from elastocap.scene import build_scene
+
+        def floats(v):  # jsonable wrote non-finite floats as strings
+            if isinstance(v, dict):
+                return {key: floats(x) for key, x in v.items()}
+            if isinstance(v, list):
+                return [floats(x) for x in v]
+            return float(v) if v in ("nan", "inf", "-inf") else v
+
+        out = Path(out_dir)
+        js = floats(json.loads((out / "branches.json").read_text()))
+        k, branches, labels, points = 0, [], [], []
+        scene = None
+        while (out / f"branch_{k}.npz").is_file():
+            with np.load(out / f"branch_{k}.npz") as z:
+                meta = json.loads(str(z["metadata"]))
+                if scene is None:
+                    scene = build_scene(meta["scene"], meta.get("scene_name", "scene"))
+                skip = {"u", "held", "label", "metadata", "status", "message",
+                        "segment_sizes"}
+                pts = {key: np.array(z[key]) for key in z.files if key not in skip}
+                u, held = np.array(z["u"]), np.array(z["held"], dtype=bool)
+                segs, i = [], 0
+                for m in np.array(z["segment_sizes"]):
+                    sl = slice(i, i + int(m))
+                    segs.append(BranchSegment(held[i].copy(), pts["delta"][sl], u[sl],
+                                              np.zeros_like(u[sl]), pts["energy"][sl],
+                                              pts["index"][sl], pts["index"][sl], [], None,
+                                              None, "loaded", ""))
+                    i += int(m)
+                label = str(z["label"])
+                evs = [e for e in js["event_list"] if e["branch"] == label]
+                branches.append(DiscreteBranch(segs, str(z["status"]), str(z["message"]),
+                                               evs))
+                labels.append(label)
+                points.append(pts)
+            k += 1
+        if scene is None:
+            raise FileNotFoundError(f"{out}: no branch_0.npz (expected the files of "
+                                    "ContactBranchSet.save)")
+        return cls(scene, js["parameter"], tuple(js["prange"]), int(js["n"]), branches,
+                   labels, points, js["folds"], js["window"], js["event_list"],
+                   js["branch_points"], js["maxwell_points"], js["metadata"],
+                   js["kind_changes"])
+
+    def plot(self, path=None, insets=3):
+        """The branch diagram (:func:`elastocap.strip.plot.plot_contact_branch_set`)."""
+        from elastocap.strip.plot import plot_contact_branch_set
+
+        return plot_contact_branch_set(self, path, insets)
+
+    def report(self) -> str:
+        """The human-readable report (:meth:`report_lines`, one string)."""
+        return "\n".join(self.report_lines())
 
     def report_lines(self) -> list[str]:
         """Human-readable report (the CLI without ``--json``)."""
@@ -1108,6 +1207,8 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         folds, events = _special(strip, branches, labels)
         kinds = _kind_changes(strip, branches, labels)
         window = _window(points, folds, kinds)
+        window["open_branch_end"] = {**_open_branch_end(labels, points, folds, kinds),
+                                     "error_estimate": math.nan}
         n_fine = None
         if refine:
             n_fine = int(n_refined) if n_refined is not None else int(round(REFINE * strip.n))
@@ -1117,8 +1218,14 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
             fine = strip.with_(n=n_fine)
             fb, fl = _trace_all(fine, lo, hi)
             ffolds, _ = _special(fine, fb, fl)
-            fwin = _window([_branch_points(fine, br) for br in fb], ffolds,
-                           _kind_changes(fine, fb, fl))
+            fpoints = [_branch_points(fine, br) for br in fb]
+            fkinds = _kind_changes(fine, fb, fl)
+            fwin = _window(fpoints, ffolds, fkinds)
+            fend = _open_branch_end(fl, fpoints, ffolds, fkinds)
+            oe = window["open_branch_end"]
+            oe["value_refined"], oe["how_refined"] = fend["value"], fend["how"]
+            if oe["value"] is not None and fend["value"] is not None:
+                oe["error_estimate"] = abs(oe["value"] - fend["value"])
             for f in folds:
                 same = [g["value"] for g in ffolds if g["kind"] == f["kind"]
                         and g["stability_change"] == f["stability_change"]]
@@ -1152,3 +1259,49 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         "wall_time_s": time.perf_counter() - t0,
     }
     return bs
+
+
+def open_branch_end(bs: ContactBranchSet) -> dict:
+    """Where the state a quasi-static spreading lands on stops existing or being stable.
+
+    The branch traced up in Delta from the deposition at the lowest seed: the largest Delta
+    of its leading stretch of stable, open, admissible states (``value``, length), and
+    ``how`` it ends: a ``contact fold`` or ``smooth fold`` (located), a ``kind change``
+    (the verdict flips on a stable stretch, located), ``stability lost`` or
+    ``inadmissible`` at a traced point, ``range`` (the stretch reaches the range's end).
+    ``value`` is None when there is no such branch (``how`` says why).
+    """
+    return _open_branch_end(bs.labels, bs.points, bs.folds, bs.kind_changes)
+
+
+def _open_branch_end(labels, points, folds, kind_changes) -> dict:
+    labs = [k for k, lab in enumerate(labels) if lab.startswith("deposition")
+            and lab.endswith("up")]
+    if not labs:
+        return {"value": None, "how": "no deposition branch"}
+    k = labs[0]
+    pts = points[k]
+    ok = (pts["index"] == 0) & (pts["encapsulated"] == 0.0) & (pts["admissible"] == 1.0)
+    if not ok[0]:
+        return {"value": None, "how": "deposition not a stable open state", "label": labels[k]}
+    stop = int(np.argmin(ok)) if not ok.all() else ok.size
+    d = pts["delta"][:stop]
+    end = float(d.max())
+    if stop == ok.size:
+        how = "range"
+    elif pts["index"][stop] != 0:
+        how = "stability lost"
+    elif pts["encapsulated"][stop] == 1.0:
+        how = "kind change"
+    else:
+        how = "inadmissible"
+    # the located special point between the last stable open point and the next one
+    if stop < ok.size:
+        a, b = sorted((end, float(pts["delta"][stop])))
+        for f in folds:
+            if f["branch"] == labels[k] and a - 1e-9 <= f["value"] <= b + 1e-9:
+                end, how = f["value"], f"{f['kind']} fold"
+        for c in kind_changes:
+            if c["branch"] == labels[k] and a - 1e-9 <= c["value"] <= b + 1e-9:
+                end, how = c["value"], "kind change"
+    return {"value": end, "how": how, "label": labels[k]}

@@ -23,6 +23,7 @@ from elastocap.strip.solve import open_state, solve_equilibrium, wrapped_state
 from elastocap.strip.trace import (
     CHORD_STOP,
     DEFAULTS,
+    open_branch_end,
     trace_contact_branches,
     trace_discrete_branch,
 )
@@ -96,6 +97,42 @@ def test_window_at_x3_is_bistable_and_its_ends_are_special_points(x3):
     assert summ["parameter"] == "drop.wetted_length" and len(summ["branches"]) >= 2
     assert all(b["status"] in ("parameter_bound", "contact_lines_meet")
                for b in summ["branches"]), [b["message"] for b in summ["branches"]]
+
+
+def test_the_deposition_branch_ends_at_a_located_fold(x3):
+    # x = 3, n = 60, range from 0.3: the branch traced up from the deposition at the lowest
+    # seed (Delta = 0.4) stays stable and open up to a located fold, at or below the window's
+    # open end (the largest Delta of a stable open state on any branch)
+    end = open_branch_end(x3)
+    assert end["label"] == "deposition at Delta = 0.4, up"
+    assert end["how"] in ("contact fold", "smooth fold"), end
+    assert 0.4 < end["value"] <= x3.window["open_max"]["value"]
+    f = [f for f in x3.folds if f["value"] == end["value"]]
+    assert f and f[0]["stability_change"][0] == 0
+    # independent: the descent from the flat strip 0.05 below the end lands on that branch
+    S, states = _states_at(x3, end["value"] - 0.05)
+    dep = open_state(S)
+    assert dep.success and dep.index == 0
+    assert min(np.max(np.abs(eq.u - dep.u)) for idx, eq in states if idx == 0) < 1e-8
+
+
+def test_save_load_round_trip(x3, tmp_path):
+    from elastocap.jsonutil import jsonable
+    from elastocap.strip.trace import ContactBranchSet
+
+    x3.save(tmp_path)
+    back = ContactBranchSet.load(tmp_path)
+    assert json.dumps(jsonable(back.summary()), sort_keys=True) == \
+        json.dumps(jsonable(x3.summary()), sort_keys=True)
+    assert back.report() == x3.report() and back.labels == x3.labels
+    for a, b in zip(x3.points, back.points, strict=True):
+        assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+    for a, b in zip(x3.branches, back.branches, strict=True):
+        assert np.array_equal(np.concatenate([s.u for s in a.segments]),
+                              np.concatenate([s.u for s in b.segments]))
+    assert back.events == x3.events and back.scene.data == x3.scene.data
+    assert back.plot(tmp_path / "again.png") is not None
+    assert (tmp_path / "again.png").stat().st_size > 1000
 
 
 def test_corners_where_a_contact_point_crosses_a_node_are_passed():
