@@ -40,7 +40,7 @@ def main(out_dir, fast: bool = False, workers: int | None = None) -> list[Path]:
                     workers=workers)
     png = out / "fig3d.png"
     plot_phase_diagram(res, png, title=f"Fig 3d (model): fig3-strip, damping {FIG3D_DAMPING}, "
-                       "draft resolution; paper's criterion, rings: companion disagrees")
+                       "draft resolution, the paper's criterion")
     js = out / "fig3d.json"
     js.write_text(json.dumps(record(res.to_dict(), scene, fast=fast), indent=1))
     return [png, js]
