@@ -61,17 +61,80 @@ def load_record(name: str) -> dict:
     return json.loads((OUT / f"{name}.json").read_text())
 
 
+#: Offsets (points) tried in turn for a point label, nearest first.
+_LABEL_OFFSETS = [(4, 4), (4, -10), (-4, 4), (-4, -10), (8, -3), (-8, -3), (0, 9), (0, -14),
+                  (12, 8), (-12, 8), (12, -14), (-12, -14), (16, -3), (-16, -3), (0, 16),
+                  (0, -22), (20, 12), (-20, 12), (20, -18), (-20, -18)]
+
+
+def _overlaps(bb, others, pad=1.0) -> bool:
+    return any(bb.x0 < o.x1 + pad and o.x0 < bb.x1 + pad and bb.y0 < o.y1 + pad
+               and o.y0 < bb.y1 + pad for o in others)
+
+
+def place_point_labels(ax, items, fontsize=7):
+    """Annotate points so that no label overlaps another label, a marker or the axes edge.
+
+    ``items``: (x, y, text, color) in data coordinates. Each label takes the first offset of
+    ``_LABEL_OFFSETS`` where it is clear; a label with no clear place is dropped rather than
+    drawn over another (the tables beside the figures carry every number). Returns the
+    labels drawn.
+    """
+    fig = ax.figure
+    renderer = fig.canvas.get_renderer()
+    marker_boxes = []
+    from matplotlib.transforms import Bbox
+
+    for x, y, _txt, _c in items:
+        px, py = ax.transData.transform((x, y))
+        marker_boxes.append(Bbox([[px - 3, py - 3], [px + 3, py + 3]]))
+    frame = ax.get_window_extent(renderer)
+    placed, boxes = [], []
+    for x, y, txt, color in items:
+        for dx, dy in _LABEL_OFFSETS:
+            ha = "left" if dx > 0 else "right" if dx < 0 else "center"
+            a = ax.annotate(txt, (x, y), xytext=(dx, dy), textcoords="offset points",
+                            fontsize=fontsize, color=color, ha=ha, va="bottom")
+            bb = a.get_window_extent(renderer)
+            inside = (bb.x0 >= frame.x0 and bb.x1 <= frame.x1 and bb.y0 >= frame.y0
+                      and bb.y1 <= frame.y1)
+            if inside and not _overlaps(bb, boxes) and not _overlaps(bb, marker_boxes, 0.0):
+                placed.append(a)
+                boxes.append(bb)
+                break
+            a.remove()
+    return placed
+
+
+def _log_ticks(axis, lo, hi):
+    """Plain numbers on a log axis; 1-2-5 ticks when it spans less than two decades."""
+    import math
+
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    decades = math.log10(hi / lo) if lo > 0 and hi > lo else 3.0
+    if decades < 2.0:
+        axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(NullFormatter())
+
+
 def wp_plot(
     path: Path, series: list[dict], title: str, xlabel="wall time [s]", ylabel="error"
 ) -> Path:
-    """Log-log error against wall time; ``series``: dicts with label, time, error, notes."""
+    """Log-log error against wall time; ``series``: dicts with label, time, error, notes.
+
+    Point labels (``notes``) are placed where they overlap nothing; the legend sits outside
+    the axes, so it hides no point.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5.6, 4.0), dpi=110)
-    for s in series:
+    fig, ax = plt.subplots(figsize=(7.4, 4.2), dpi=110)
+    items, ts, es = [], [], []
+    for k, s in enumerate(series):
         pts = [
             (t, e, n)
             for t, e, n in zip(
@@ -82,18 +145,24 @@ def wp_plot(
         if not pts:
             continue
         t, e, n = zip(*pts, strict=True)
-        ax.loglog(t, e, "o-", label=s["label"], ms=4)
-        for ti, ei, ni in zip(t, e, n, strict=True):
-            if ni:
-                ax.annotate(
-                    str(ni), (ti, ei), fontsize=7, xytext=(3, 3), textcoords="offset points"
-                )
+        color = f"C{k % 10}"
+        ax.loglog(t, e, "o-", label=s["label"], ms=4, color=color)
+        ts += t
+        es += e
+        items += [(ti, ei, str(ni), color) for ti, ei, ni in zip(t, e, n, strict=True) if ni]
+    if ts:
+        ax.set_xlim(min(ts) / 1.25, max(ts) * 1.25)
+        ax.set_ylim(min(es) / 2.5, max(es) * 2.5)
+        _log_ticks(ax.xaxis, *ax.get_xlim())
+        _log_ticks(ax.yaxis, *ax.get_ylim())
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.grid(True, which="minor", alpha=0.1)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     fig.tight_layout()
+    place_point_labels(ax, items)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)

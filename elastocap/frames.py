@@ -122,11 +122,11 @@ def frame_strip(
         ax.set_yticks([])
         ax.set_title(f"$t$ = {t:.2f}", fontsize=8, loc="left", pad=2)
         if k == 0:  # the same scale in every panel: one bar, in the first
+            # top right, where the first frame (the rod flat, at rest) leaves room
             x0 = hi[0] + pad - 0.05 * w - bar
-            y0 = lo[1] - pad + 0.06 * hgt
+            y0 = hi[1] + pad - 0.1 * hgt
             ax.plot([x0, x0 + bar], [y0, y0], color="k", lw=2.0, solid_capstyle="butt")
-            ax.text(x0 + 0.5 * bar, y0 + 0.03 * hgt, unit, ha="center", va="bottom",
-                    fontsize=7)
+            ax.text(x0 + 0.5 * bar, y0 - 0.03 * hgt, unit, ha="center", va="top", fontsize=7)
     fig.suptitle(
         title or rf"{scene.name}: $\Delta$ = {scene.drop.wetted_length:.3g}, "
         f"outcome {result.outcome}",

@@ -1,21 +1,72 @@
 """Every paper figure runs in fast mode and reproduces its key number (they cannot rot)."""
 
 import json
+import re
+from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from elastocap.cli import main
 from elastocap.paper_figures import FIGURES, run_figures
 
 
+def _boxes_overlap(a, b, pad=0.0) -> bool:
+    return a.x0 < b.x1 - pad and b.x0 < a.x1 - pad and a.y0 < b.y1 - pad and b.y0 < a.y1 - pad
+
+
+def _describe(fig) -> dict:
+    """What a reader sees of a figure: its texts with their boxes, legends, axis labels."""
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    axes = []
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        leg = ax.get_legend()
+        ticks = {}
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)) if ax.axison else ():
+            ticks[name] = [
+                t.get_window_extent(r)
+                for t in axis.get_ticklabels()
+                if t.get_visible() and t.get_text()
+            ]
+        axes.append(
+            {
+                "texts": [(t.get_text(), t.get_window_extent(r)) for t in ax.texts
+                          if t.get_visible() and t.get_text()],
+                "legend": [t.get_text() for t in leg.get_texts()] if leg else [],
+                "labels": [ax.get_xlabel(), ax.get_ylabel(), ax.get_title(),
+                           ax.get_title("left")],
+                "ticks": ticks,
+            }
+        )
+    sup = fig._suptitle.get_text() if fig._suptitle is not None else ""
+    return {"axes": axes, "suptitle": sup, "size_px": fig.canvas.get_width_height()}
+
+
 @pytest.fixture(scope="module")
 def figs(tmp_path_factory):
+    """Every figure in fast mode; each figure is also described as it is saved."""
+    from matplotlib.figure import Figure
+
     out = tmp_path_factory.mktemp("figs")
-    return out, run_figures(out, fast=True)
+    seen = {}
+    save = Figure.savefig
+
+    def savefig(self, fname, *a, **kw):
+        seen[Path(str(fname)).name] = _describe(self)
+        return save(self, fname, *a, **kw)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Figure, "savefig", savefig)
+        written = run_figures(out, fast=True)
+    return out, written, seen
 
 
 def test_every_figure_writes_its_files(figs):
-    out, written = figs
+    out, written, _ = figs
     assert set(written) == set(FIGURES)
     for paths in written.values():
         for p in paths:
@@ -23,14 +74,14 @@ def test_every_figure_writes_its_files(figs):
 
 
 def test_supp_fig6_fold(figs):
-    out, _ = figs
+    out, _, _ = figs
     folds = json.loads((out / "supp-fig6.json").read_text())["folds"]
     # draft resolution (16 LGL intervals): fold error 1.4e-9 (README convergence table)
     assert len(folds) == 1 and folds[0]["value"] == pytest.approx(3.46979475157, abs=5e-9)
 
 
 def test_bistability_curve_passes_through_the_fold(figs):
-    out, _ = figs
+    out, _, _ = figs
     (curve,) = json.loads((out / "bistability.json").read_text())["curves"]
     import numpy as np
 
@@ -42,13 +93,13 @@ def test_bistability_curve_passes_through_the_fold(figs):
 
 
 def test_supp_fig5_outcomes(figs):
-    out, _ = figs
+    out, _, _ = figs
     s = json.loads((out / "supp-fig5.json").read_text())
     assert s["a"]["outcome"] == "open" and s["b"]["outcome"] == "encapsulated"
 
 
 def test_overlay_branch_reached(figs):
-    out, _ = figs
+    out, _, _ = figs
     runs = json.loads((out / "overlay.json").read_text())["runs"]
     assert [r["branch_reached"] for r in runs][0] == "primary"
     assert runs[-1]["outcome"] == "encapsulated" and runs[-1]["branch_reached"] != "primary"
@@ -60,7 +111,7 @@ def test_figures_cli_rejects_unknown_name(capsys):
 
 
 def test_fig3d_fast_line(figs):
-    out, _ = figs
+    out, _, _ = figs
     runs = json.loads((out / "fig3d.json").read_text())["runs"]
     # x = 3 l_eg (draft, damping 0.1): We^1/2 = 1 stays open, 2.5 encapsulates (README Fig 3d)
     got = {r["we_sqrt"]: r["outcome"] for r in runs}
@@ -68,13 +119,13 @@ def test_fig3d_fast_line(figs):
 
 
 def test_fig4_floppy_encapsulation(figs):
-    out, _ = figs
+    out, _, _ = figs
     s = json.loads((out / "fig4_fig5.json").read_text())
     assert s["fig4B"]["outcome"] == "encapsulated" == s["fig4B"]["companion_outcome"]
 
 
 def test_energy_barrier_string_and_graph_agree(figs):
-    out, _ = figs
+    out, _, _ = figs
     d = json.loads((out / "energy_barrier.json").read_text())
     assert d["not_handled"]  # the limits are written into the output, not hidden
     # x = 3, Delta = 1.1, n = 60: the string method's saddle and the lowest barrier over
@@ -85,10 +136,148 @@ def test_energy_barrier_string_and_graph_agree(figs):
 
 
 def test_every_json_record_says_what_made_it(figs):
-    out, written = figs
+    out, written, _ = figs
     for paths in written.values():
         for p in paths:
             if p.suffix == ".json":
                 made = json.loads(p.read_text())["made_by"]
                 assert made["elastocap"] and made["scene"]["name"]
                 assert "accuracy" in made["numerics"]
+
+
+# ---- what the figures show (drawing checks) --------------------------------------------
+
+
+def test_every_figure_was_looked_at(figs):
+    _, written, seen = figs
+    pngs = {p.name for paths in written.values() for p in paths if p.suffix == ".png"}
+    assert pngs <= set(seen), pngs - set(seen)
+
+
+def test_legends_have_no_duplicate_entries(figs):
+    _, _, seen = figs
+    for name, d in seen.items():
+        for ax in d["axes"]:
+            assert len(ax["legend"]) == len(set(ax["legend"])), (name, ax["legend"])
+
+
+def test_labels_use_mathtext_not_spelled_out_symbols(figs):
+    _, _, seen = figs
+    spelled = re.compile(r"\bDelta\b|\btheta\b|l_eg|\bpi\b|We\^|ℓ_")
+    for name, d in seen.items():
+        strings = [d["suptitle"]]
+        for ax in d["axes"]:
+            strings += ax["labels"] + ax["legend"] + [t for t, _ in ax["texts"]]
+        for s in strings:
+            plain = re.sub(r"\$[^$]*\$", " ", s)  # mathtext is what we want
+            assert not spelled.search(plain), (name, s)
+
+
+def test_no_overlapping_texts_or_tick_labels(figs):
+    _, _, seen = figs
+    for name, d in seen.items():
+        for ax in d["axes"]:
+            boxes = ax["texts"]
+            for i in range(len(boxes)):
+                for j in range(i + 1, len(boxes)):
+                    assert not _boxes_overlap(boxes[i][1], boxes[j][1], pad=0.5), (
+                        name, boxes[i][0], boxes[j][0])
+            for ticks in ax["ticks"].values():
+                for i in range(len(ticks) - 1):
+                    for j in range(i + 1, len(ticks)):
+                        assert not _boxes_overlap(ticks[i], ticks[j]), name
+
+
+def test_branch_diagram_explains_every_marker_and_labels_shapes(figs):
+    _, _, seen = figs
+    d = seen["supp-fig6.png"]
+    main, *panels = d["axes"]
+    for entry in ("✕ fold", "□ branch point", "◆ equal energy (Maxwell)", "stable", "unstable",
+                  "inadmissible (crossing)"):
+        assert entry in main["legend"], main["legend"]
+    titles = [p["labels"][2] for p in panels if p["labels"][2]]
+    assert len(titles) == 4 and all(re.fullmatch(r"\([a-d]\)  Δ = \d\.\d\d", t) for t in titles)
+    folds = [t for t, _ in main["texts"] if t.startswith("fold")]
+    assert folds and all(re.match(r"fold Δ = \d\.\d{4}( ± \S+)?$", t) for t in folds)
+    # each shape panel is marked on the curve by its letter: no leader lines
+    assert sorted(t for t, _ in main["texts"] if len(t) == 1) == ["a", "b", "c", "d"]
+
+
+def test_frame_strips_have_time_stamps_a_scale_bar_and_a_sensible_size(figs):
+    _, _, seen = figs
+    for name in ("supp-fig5a.png", "supp-fig5b.png", "fig4B.png"):
+        d = seen[name]
+        w, h = d["size_px"]
+        assert 800 <= w <= 1600 and h >= 200 and w / h < 5, (name, w, h)
+        stamps = [ax["labels"][3] for ax in d["axes"] if ax["labels"][3]]
+        assert len(stamps) >= 4 and all(s.startswith("$t$ = ") for s in stamps), stamps
+        bars = [t for ax in d["axes"] for t, _ in ax["texts"] if "ell_" in t]
+        assert len(bars) == 1, bars
+
+
+def _fake_run(delta, m_end, t_end=50.0):
+    t = np.linspace(0.0, t_end, 200)
+    m = m_end + 0.2 * np.exp(-t / 10) * np.cos(t)
+    res = SimpleNamespace(simulation=SimpleNamespace(times=t), measure_history=m)
+    run = {"wetted_length": delta, "outcome": "encapsulated" if m_end > 1 else "open"}
+    return run, res
+
+
+def test_overlay_final_markers_sit_at_their_delta(tmp_path):
+    from elastocap.overlay import plot_overlay
+    from elastocap.scene import load_scene
+    from elastocap.statics.branches import trace_branches
+
+    bs = trace_branches(load_scene("supp-fig5", {"numerics.accuracy": "draft"}),
+                        error_estimates=False)
+    pairs = [_fake_run(2.5, 0.34), _fake_run(4.0, 1.32)]
+    fig = plot_overlay(bs, [p[0] for p in pairs], [p[1] for p in pairs], tmp_path / "o.png")
+    ax = fig.axes[0]
+    finals = [ln for ln in ax.lines if ln.get_marker() == "o" and ln.get_markersize() == 7
+              and len(ln.get_xdata()) == 1]
+    assert sorted(float(ln.get_xdata()[0]) for ln in finals) == [2.5, 4.0]
+    paths = [ln for ln in ax.lines if len(ln.get_xdata()) == 200]
+    assert [float(ln.get_xdata()[-1]) for ln in paths] == [2.5, 4.0]  # paths end at Δ
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "● at rest: encapsulated" in labels and "○ at rest: open" in labels
+    assert len(labels) == len(set(labels))
+
+
+def test_work_precision_labels_never_collide(tmp_path):
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    try:
+        import wp_common
+    finally:
+        sys.path.pop(0)
+    from matplotlib.figure import Figure
+
+    # crowded like the AUTO comparison: five points within 10 % in time at the floor
+    series = [
+        {"label": "ours", "time": [0.15, 0.17, 0.18, 0.185, 0.19, 0.195, 0.2],
+         "error": [1e-4, 1e-9, 3e-12, 1e-12, 1e-12, 1e-12, 1e-12],
+         "notes": ["8", "16", "20", "24", "32", "40", "48"]},
+        {"label": "peer", "time": [0.024, 0.0245, 0.025, 0.026, 0.03],
+         "error": [3e-3, 2e-3, 1e-4, 1e-6, 1e-8], "notes": ["6", "8", "10", "12", "16"]},
+    ]
+    seen = {}
+    save = Figure.savefig
+
+    def savefig(self, fname, *a, **kw):
+        seen["fig"] = _describe(self)
+        return save(self, fname, *a, **kw)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(Figure, "savefig", savefig)
+        wp_common.wp_plot(tmp_path / "wp.png", series, "test")
+    (ax,) = seen["fig"]["axes"]
+    boxes = [b for _, b in ax["texts"]]
+    assert len(boxes) >= 8  # most points keep their label
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            assert not _boxes_overlap(boxes[i], boxes[j])
+    for ticks in ax["ticks"].values():
+        for i in range(len(ticks)):
+            for j in range(i + 1, len(ticks)):
+                assert not _boxes_overlap(ticks[i], ticks[j])

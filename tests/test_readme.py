@@ -4,6 +4,8 @@ stays a short reference."""
 import re
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -46,3 +48,32 @@ def test_readme_is_a_short_reference():
                     "## Documentation"):
         assert heading in text
     assert "ARCHITECTURE.md" not in text
+
+
+def _python_blocks() -> list[str]:
+    text = (ROOT / "README.md").read_text()
+    return [b.split("```", 1)[0] for b in text.split("```python\n")[1:]]
+
+
+def test_readme_has_three_api_examples():
+    blocks = _python_blocks()
+    assert len(blocks) == 3
+    assert "trace_branches" in blocks[0] and "assert_folds" in blocks[0]
+    assert "run_impact" in blocks[1] and "run_overlay" in blocks[1]
+    assert "run_sweep" in blocks[2] and "csv" in blocks[2]
+
+
+@pytest.mark.slow
+def test_readme_python_examples_run(tmp_path, monkeypatch):
+    """The three API examples, run in sequence as a user pastes them (about 1 min)."""
+    import json
+
+    monkeypatch.chdir(tmp_path)
+    # the reference file the first example checks against, as `elastocap folds --json` writes
+    (tmp_path / "ref.json").write_text(json.dumps({"folds": [{"value": 3.469794751569}]}))
+    ns: dict = {}
+    for block in _python_blocks():
+        exec(compile(block, "README.md", "exec"), ns)
+    assert ns["res"].to_dict()["boundary"]
+    assert (tmp_path / "out" / "sweep.csv").stat().st_size > 50
+    assert (tmp_path / "out" / "overlay").is_dir()

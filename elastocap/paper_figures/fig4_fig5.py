@@ -65,10 +65,11 @@ def main(out_dir, fast: bool = False) -> list[Path]:
         scene = _scene(spec, fast)
         res = run_impact(scene)
         png = out / f"{name}.png"
-        frame_strip(res, scene, png, k=8, title=f"{name}: x = {spec['x']:g} l_eg, We^1/2 = "
-                    f"{spec['we_sqrt']:g}" + (f", S2 += {spec['s2_shift']} at t = "
-                                              f"{spec['t_event']}" if "s2_shift" in spec else "")
-                    + f": {res.outcome}")
+        event = (rf", $S_2 \to S_2 + {spec['s2_shift']}\,\ell_{{eg}}$ at $t$ = {spec['t_event']}"
+                 if "s2_shift" in spec else "")
+        frame_strip(res, scene, png, k=8,
+                    title=rf"{name}: $x = {spec['x']:g}\,\ell_{{eg}}$, "
+                    rf"$\mathrm{{We}}^{{1/2}}$ = {spec['we_sqrt']:g}{event}: {res.outcome}")
         files.append(png)
         from elastocap.criteria import companion_outcome
 
