@@ -24,8 +24,9 @@ class FoldMismatch(AssertionError):
     """Raised by :func:`assert_folds`; the message is the comparison table."""
 
 
-def load_folds(path) -> list[dict]:
-    """Read the ``folds`` list of a JSON file (as written by ``elastocap folds --json``)."""
+def load_folds(path, key: str = "folds") -> list[dict]:
+    """Read the ``folds`` list (or another list of points, e.g. ``cusps`` from ``folds
+    --curve``) of a JSON file (as written by ``elastocap folds --json``)."""
     p = Path(path)
     try:
         data = json.loads(p.read_text())
@@ -33,13 +34,14 @@ def load_folds(path) -> list[dict]:
         raise ValueError(f"--check: got {str(path)!r}; no such file") from None
     except json.JSONDecodeError as err:
         raise ValueError(f"--check: got {str(path)!r}; not valid JSON ({err})") from None
-    folds = data.get("folds") if isinstance(data, dict) else None
+    folds = data.get(key) if isinstance(data, dict) else None
     if not isinstance(folds, list) or not all(
         isinstance(f, dict) and isinstance(f.get("value"), int | float) for f in folds
     ):
         raise ValueError(
-            f"--check: got {str(path)!r}; expected a JSON object with a key 'folds': a list "
-            "of objects each with a numeric 'value' (the output of `elastocap folds --json`)"
+            f"--check: got {str(path)!r}; expected a JSON object with a key '{key}': a list "
+            "of objects each with a numeric 'value' (the output of `elastocap folds --json`"
+            + (" --curve ...)" if key != "folds" else ")")
         )
     return folds
 
