@@ -410,8 +410,8 @@ def _relocate_branch_point(problem, br: Branch, sp, cont: ContinuationSettings,
     for frac in (8.0, 5.0, 13.0):  # other step sizes put other points next to it
         ds = arc / frac
         sub = cont.replace(ds0=max(ds, cont.ds_min), ds_max=max(ds, cont.ds_min),
-                           ds_min=min(cont.ds_min, ds / 64), max_steps=int(3 * frac),
-                           direction=1, check_jacobian=False)
+                           ds_min=min(cont.ds_min, ds / 64), max_steps=int(frac) + 4,
+                           step_grow=1.0, direction=1, check_jacobian=False)
         t = br.tangent[k - 1]
         nb = continue_branch(problem, br.u[k - 1], float(br.p[k - 1]), sub, tangent=t)
         for q in nb.branch_points:
@@ -759,6 +759,12 @@ class BranchSearch:
                 if self._full():
                     return
                 st["switches"] += 1
+                # a few steps first: if they lie on a known branch, the switch leads there
+                probe = switch_branch(self.problem, sp, self.cont.replace(max_steps=3),
+                                      events=self.events, stop_on=self.stop_on)
+                if not len(probe) or self._duplicate(probe):
+                    st["duplicates"] += 1
+                    continue
                 nb = switch_branch(self.problem, sp, self.cont, events=self.events,
                                    stop_on=self.stop_on)
                 new = self._add(nb, {"how": "switch", "p": float(sp.p), "branch": b})

@@ -210,13 +210,80 @@ def cmd_branches(args) -> int:
     return 0
 
 
+def _folds_curve(args, expected, rtol) -> int:
+    """``folds SCENE --curve KEY LO HI``: fold curves, cusps, the bistability region."""
+    import os
+    import tempfile
+
+    from elastocap.statics.bistability import fold_curve_report, plot_bistability
+    from elastocap.testing import compare_folds
+
+    key, lo, hi = args.curve
+    try:
+        lo, hi = float(lo), float(hi)
+    except ValueError:
+        raise UsageError(f"--curve: got {args.curve}; expected KEY LO HI (numbers)") from None
+    scene = _load(args)
+    out = Path(args.out) if args.out else None
+    if out is not None and out.exists() and not out.is_dir():
+        raise UsageError(f"--out: got {str(out)!r}; expected a directory")
+    rep = fold_curve_report(scene, key, (lo, hi))
+    bs, curves = rep.pop("_objects")
+    files = []
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        js = out / f"fold-curves-{scene.name}.json"
+        png = out / f"fold-curves-{scene.name}.png"
+        for path, write in ((js, lambda f: f.write(json.dumps(jsonable(rep), indent=2))),):
+            fd, tmp = tempfile.mkstemp(dir=out, suffix=".tmp")
+            with os.fdopen(fd, "w") as f:
+                write(f)
+            os.replace(tmp, path)
+        fd, tmp = tempfile.mkstemp(dir=out, suffix=".png")
+        os.close(fd)
+        plot_bistability(scene, bs, curves, key, tmp)
+        os.replace(tmp, png)
+        files = [str(js), str(png)]
+        rep["files"] = files
+    ok = True
+    if expected is not None:
+        ok, table = compare_folds(rep["cusps"], expected, rtol, rep["unlocated"])
+        table = table.replace("all folds match", "all cusps match").replace(
+            "folds differ", "cusps differ")
+    if args.json:
+        _print_json({**({"match": ok, "rtol": rtol} if expected is not None else {}), **rep})
+    elif expected is not None:
+        print(table)
+    else:
+        print(f"{scene.name}: {len(curves)} fold curves in {key} over [{lo:g}, {hi:g}] "
+              f"(N={rep['metadata']['N']}, {rep['metadata']['wall_time_s']:.2f} s)")
+        for c in rep["cusps"]:
+            err = c["error_estimate"]
+            print(f"  cusp          {key} = {c['value']:.12f}  "
+                  f"{'(not estimated)' if err is None else f'± {err:.1e}'}  "
+                  f"at Δ = {c['drop.wetted_length']:.10f}")
+        for u in rep["unlocated"]:
+            print(f"  NOT LOCATED   cusp near {u['value']:.6g}: {u['reason']}; "
+                  f"{u['what_to_try']}")
+        for f in files:
+            print(f"wrote {f}")
+    return 0 if ok else 1
+
+
 def cmd_folds(args) -> int:
     from elastocap.testing import DEFAULT_RTOL, compare_folds, load_folds
 
-    expected = load_folds(args.check) if args.check else None  # bad file: exit 2 before work
     rtol = DEFAULT_RTOL if args.rtol is None else args.rtol
     if not (rtol > 0 and math.isfinite(rtol)):
         raise UsageError(f"--rtol: got {rtol!r}; expected a finite number > 0")
+    if args.curve:
+        # bad reference file: exit 2 before any work
+        expected = load_folds(args.check, key="cusps") if args.check else None
+        return _folds_curve(args, expected, rtol)
+    if args.out:
+        raise UsageError("--out: only with --curve (use `elastocap branches --out` for "
+                         "branch files)")
+    expected = load_folds(args.check) if args.check else None  # bad file: exit 2 before work
     progress = _progress(args, "folds")
     bs = _trace_or_fail(args, progress=progress, step=(0, 1))
     if bs is None:
@@ -654,6 +721,16 @@ def build_parser() -> argparse.ArgumentParser:
                 default=None,
                 help="relative tolerance of --check (default 1e-8)",
             )
+            p.add_argument(
+                "--curve",
+                nargs=3,
+                metavar=("KEY", "LO", "HI"),
+                help="fold curves: continue every fold in KEY (e.g. drop.area) over [LO, HI]; "
+                "locate every cusp; --out DIR writes the JSON and the bistability map; "
+                "--check pins the cusps",
+            )
+            p.add_argument("--out", metavar="DIR",
+                           help="with --curve: output directory for JSON and PNG")
         if name == "impact":
             p.add_argument(
                 "--frames",

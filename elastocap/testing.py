@@ -24,10 +24,11 @@ class FoldMismatch(AssertionError):
     """Raised by :func:`assert_folds`; the message is the comparison table."""
 
 
-def _fold_list(data, origin: str) -> list[dict]:
-    """The fold list of ``data``: a list of fold objects, or an object with a key ``folds``
-    (the JSON of ``elastocap folds --json``, or a ``branches.json``)."""
-    folds = data.get("folds") if isinstance(data, dict) else data
+def _fold_list(data, origin: str, key: str = "folds") -> list[dict]:
+    """The point list of ``data``: a list of point objects, or an object with a key ``key``
+    (``folds``: the JSON of ``elastocap folds --json``, or a ``branches.json``; ``cusps``:
+    the JSON of ``elastocap folds --curve ... --json``)."""
+    folds = data.get(key) if isinstance(data, dict) else data
     if not isinstance(folds, list) or not all(
         isinstance(f, dict)
         and isinstance(f.get("value"), int | float)
@@ -35,14 +36,15 @@ def _fold_list(data, origin: str) -> list[dict]:
         for f in folds
     ):
         raise ValueError(
-            f"{origin}; expected a JSON object with a key 'folds' (the output of "
-            "`elastocap folds --json`) or a list of folds (objects each with a numeric "
-            "'value', as find_folds returns)"
+            f"{origin}; expected a JSON object with a key '{key}' (the output of "
+            "`elastocap folds --json`" + (" --curve ...)" if key != "folds" else ")")
+            + " or a list of points (objects each with a numeric 'value', as find_folds "
+            "returns)"
         )
     return folds
 
 
-def load_folds(path, option: str = "--check") -> list[dict]:
+def load_folds(path, option: str = "--check", key: str = "folds") -> list[dict]:
     """Read the fold list of a JSON file: the output of ``elastocap folds --json``, a
     ``branches.json``, or a saved list of folds (``json.dump(find_folds(scene), f)``)."""
     p = Path(path)
@@ -59,7 +61,7 @@ def load_folds(path, option: str = "--check") -> list[dict]:
         raise ValueError(f"{origin}; not UTF-8 text (expected a JSON file)") from None
     except (json.JSONDecodeError, RecursionError) as err:
         raise ValueError(f"{origin}; not valid JSON ({err})") from None
-    return _fold_list(data, origin)
+    return _fold_list(data, origin, key)
 
 
 def compare_folds(found, expected, rtol=DEFAULT_RTOL, unlocated=()) -> tuple[bool, str]:

@@ -16,16 +16,19 @@ import numpy as np
 
 from continuation import ContinuationSettings, continue_fold
 from elastocap.scene import Scene, SceneError
-from elastocap.statics.branches import BranchSet, trace_branches
+from elastocap.statics.branches import BranchSet, problem_for, trace_branches
 from elastocap.statics.wet_elastica import PARAMETERS
 
-__all__ = ["fold_curves", "plot_bistability"]
+__all__ = ["fold_curve_report", "fold_curves", "plot_bistability"]
 
 
 def fold_curves(
     scene: Scene, q_param: str = "drop.area", q_range=(0.2, 3.0), bs=None, ds_max: float = 0.05
 ):
     """Continue every fold of ``scene`` (in Delta) in the scene key ``q_param``.
+
+    A curve ends where its Delta leaves the admissible region (the wet interval reaches an
+    end of the rod): a fold beyond it is not a fold of any scene of the family.
 
     Returns
     -------
@@ -34,7 +37,7 @@ def fold_curves(
     """
     if q_param not in PARAMETERS or q_param == "drop.wetted_length":
         raise SceneError(
-            "--q",
+            "--curve",
             q_param,
             "expected a scene key other than drop.wetted_length: "
             + ", ".join(k for k in PARAMETERS if k != "drop.wetted_length"),
@@ -43,9 +46,12 @@ def fold_curves(
     P = bs.problem
     curves = []
     seen = []
+    # only the folds the branch set reports (located, transversal, not pitchfork tips)
+    honest = [f["value"] for f in bs.folds]
     for br in bs.branches:
         for sp in br.folds:
-            if not sp.located or any(abs(sp.p - v) < 1e-8 for v in seen):
+            if (not sp.located or any(abs(sp.p - v) < 1e-8 for v in seen)
+                    or not any(abs(sp.p - v) <= 1e-12 * (1 + abs(v)) for v in honest)):
                 continue
             seen.append(sp.p)
             q0 = P.get(q_param)
@@ -63,7 +69,16 @@ def fold_curves(
                 newton_tol=scene.numerics.newton_tol,
                 check_jacobian=False,
             )
-            curves.append(continue_fold(family, sp, q0, settings, parameter=q_param))
+            n = P.N + 2
+
+            def boundary(U, q, n=n):
+                # the wet interval must lie on the rod: Delta <= 2 min(centre, L - centre)
+                prm = P.with_(**{q_param: q}).params
+                return 2.0 * min(prm["center"], prm["L"] - prm["center"]) - U[n]
+
+            curves.append(continue_fold(family, sp, q0, settings, parameter=q_param,
+                                        events={"admissible_boundary": boundary},
+                                        stop_on=["admissible_boundary"]))
     return bs, curves
 
 
@@ -89,7 +104,7 @@ def plot_bistability(scene: Scene, bs: BranchSet, curves, q_param: str, path=Non
         )
         ax.plot(d, q, color="k", lw=1.6, label="fold curve")
         for sp in fc.special_points:
-            if sp.kind == "fold":  # a fold of the fold curve: an extremum of q (a cusp)
+            if sp.kind == "fold" and sp.located:  # an extremum of q on the curve: a cusp
                 dv = sp.u[-1] if sp.u is not None else np.nan
                 ax.plot(dv, sp.p, "o", color="tab:red", ms=6, label=f"extremum of {q_param}")
     ax.axvline(L, color="0.4", ls="--", lw=1, label=f"Δ = L = {L:g}")
@@ -109,3 +124,139 @@ def plot_bistability(scene: Scene, bs: BranchSet, curves, q_param: str, path=Non
     if path is not None:
         fig.savefig(path, bbox_inches="tight")
     return fig
+
+
+def _cusp_error(problem, curve, sp, q_param, settings):
+    """|q_cusp(N) - q_cusp(N2)|, N2 = N + max(8, N/2): the cusp relocated on the fold curve
+    of the finer discretization (a short fold curve through the cusp at N2). Returns
+    (estimate, "") or (None, reason)."""
+    from continuation import continue_fold, locate_fold
+
+    N, n = problem.N, problem.N + 2
+    N2 = N + max(8, N // 2)
+    fine = problem.with_(parameter="drop.wetted_length", N=N2)
+    Mi = problem.interp_matrix(fine.xi)
+    q_c = float(sp.p)
+    # a point of the coarse curve a little away from the cusp (the fold is regular there)
+    i = max(sp.index - 2, 0)
+    U = curve.u[i]
+    q_i = float(curve.p[i])
+    u2 = np.concatenate([Mi @ U[: N + 1], [0.0]])
+    f2 = locate_fold(fine.with_(**{q_param: q_i}), u2, float(U[n]))
+    if not f2.located:
+        return None, f"the fold near the cusp did not relocate at N={N2}"
+    w = abs(q_c - q_i)
+    s2 = settings.replace(p_min=q_c - 4 * w - 1e-3, p_max=q_c + 4 * w + 1e-3, direction=0,
+                          ds0=min(settings.ds0, w / 4 + 1e-6),
+                          ds_max=min(settings.ds_max, w / 2 + 1e-4),
+                          ds_min=min(settings.ds_min, 1e-10))
+
+    def family2(q):
+        return fine.with_(**{q_param: q})
+
+    fc2 = continue_fold(family2, f2, q_i, s2, parameter=q_param)
+    cands = [c for c in fc2.folds if c.located]
+    if not cands:
+        return None, f"no cusp on the fold curve at N={N2} near {q_param}={q_c:.6g}"
+    best = min(cands, key=lambda c: abs(c.p - q_c))
+    return abs(best.p - q_c), ""
+
+
+def fold_curve_report(scene: Scene, q_param: str, q_range, *, ds_max: float = 0.02,
+                      error_estimates: bool = True) -> dict:
+    """The fold curves of ``scene`` (folds in Delta continued in ``q_param`` over
+    ``q_range``), every cusp (extremum of ``q_param`` on a curve) located with an error
+    estimate, as plain data (JSON numbers or null).
+
+    Returns
+    -------
+    dict
+        ``scene``, ``parameter`` (Delta), ``curve_parameter``, ``range``, ``curves`` (one
+        per curve: q and Delta arrays, end statuses), ``cusps`` (value of q, Delta,
+        error_estimate), ``unlocated`` (cusps not confirmed: reason, what to try),
+        ``metadata``; and, under the key ``_objects``, the branch set and curves for
+        plotting (not JSON).
+    """
+    import math
+    import time
+
+    from elastocap._version import __version__
+
+    t0 = time.perf_counter()
+    lo, hi = float(q_range[0]), float(q_range[1])
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo < hi):
+        raise SceneError("--curve", [q_param, lo, hi], "expected KEY LO HI with 0 < LO < HI")
+    if q_param not in PARAMETERS or q_param == "drop.wetted_length":
+        fold_curves(scene, q_param)  # raises the clear error
+    q0 = problem_for(scene).get(q_param)
+    if not lo <= q0 <= hi:
+        raise SceneError("--curve", [q_param, lo, hi],
+                         f"expected a range that contains the scene's {q_param} = {q0:g} "
+                         "(the curves start at the scene's folds)")
+    bs, curves = fold_curves(scene, q_param, (lo, hi), ds_max=ds_max)
+    P = bs.problem
+    settings = ContinuationSettings(ds0=0.01, ds_max=ds_max, max_steps=2000, p_min=lo,
+                                    p_max=hi, direction=0,
+                                    newton_tol=scene.numerics.newton_tol,
+                                    check_jacobian=False)
+    cusps, unlocated, out_curves = [], [], []
+    for k, fc in enumerate(curves):
+        # the points inside the admissible region, ending on the located boundary crossing
+        qs, ds = [], []
+        for qv, dv in zip(fc.p, fc.observables["p"], strict=True):
+            prm = P.with_(**{q_param: float(qv)}).params
+            if dv <= 2.0 * min(prm["center"], prm["L"] - prm["center"]) * (1 + 1e-12):
+                qs.append(float(qv))
+                ds.append(float(dv))
+        ends = [sp for sp in fc.points("event") if sp.name == "admissible_boundary"]
+        out_curves.append({
+            "points": len(qs),
+            curve_key(q_param): qs,
+            "drop.wetted_length": ds,
+            "end_status": fc.metadata.get("end_status"),
+            "admissible_boundary": [
+                {curve_key(q_param): float(sp.p), "drop.wetted_length": float(sp.u[-1])}
+                for sp in ends if sp.located and sp.u is not None],
+        })
+        for sp in fc.folds:
+            delta = float(sp.u[-1]) if sp.u is not None else None
+            if delta is not None:
+                prm = P.with_(**{q_param: float(sp.p)}).params
+                if delta > 2.0 * min(prm["center"], prm["L"] - prm["center"]):
+                    continue  # beyond the admissible region: no cusp of a scene
+            entry = {"value": float(sp.p), "drop.wetted_length": delta, "curve": k}
+            if not sp.located:
+                unlocated.append({**entry, "kind": "cusp", "reason": "bracketed, not located",
+                                  "what_to_try": "a smaller ds_max or a narrower range"})
+                continue
+            if error_estimates:
+                err, why = _cusp_error(P, fc, sp, q_param, settings)
+                if err is None:
+                    unlocated.append({**entry, "kind": "cusp", "reason": why,
+                                      "what_to_try": "a finer numerics.cheb_points"})
+                    continue
+                entry["error_estimate"] = float(err)
+            else:
+                entry["error_estimate"] = None
+            if not any(abs(c["value"] - entry["value"]) <= 1e-8 * (1 + abs(entry["value"]))
+                       for c in cusps):
+                cusps.append(entry)
+    cusps.sort(key=lambda c: c["value"])
+    return {
+        "scene": scene.name,
+        "parameter": "drop.wetted_length",
+        "curve_parameter": q_param,
+        "range": [lo, hi],
+        "folds": bs.folds,
+        "cusps": cusps,
+        "unlocated": unlocated,
+        "curves": out_curves,
+        "metadata": {"N": P.N, "newton_tol": scene.numerics.newton_tol, "ds_max": ds_max,
+                     "scene": scene.data, "version": __version__,
+                     "wall_time_s": time.perf_counter() - t0},
+        "_objects": (bs, curves),
+    }
+
+
+def curve_key(q_param: str) -> str:
+    return q_param

@@ -613,7 +613,17 @@ def _collect_special_points(result: BranchSet, error_estimates: bool, end_names)
                          "stability_change": _stability_change(br, sp.index),
                          "located": True, "branch": b}
                 reason, hint = "", ""
-                if not sp.located:
+                tip = any(q.kind == "branch_point" and q.index == sp.index
+                          for q in br.special_points)
+                if tip:
+                    # p turns in the same step as a branch point: a pitchfork seen from its
+                    # bifurcating branch (fold and branch point in one), not a fold
+                    reason = ("a branch point, not a fold: the branch turns in the same step "
+                              "as it crosses a branch point (a pitchfork seen from its "
+                              "bifurcating branch)")
+                    hint = "the branch point is located on the branch it bifurcates from"
+                    entry["kind"] = "branch_point"
+                elif not sp.located:
                     reason = ("the fold was bracketed but its Newton did not converge: "
                               + sp.data.get("message", "no message"))
                     hint = ("try a finer numerics.cheb_points or a narrower --range around "
@@ -641,8 +651,9 @@ def _collect_special_points(result: BranchSet, error_estimates: bool, end_names)
                     else:
                         entry["error_estimate"] = None
                 if reason:
-                    unlocated.append({"kind": "fold", "value": float(sp.p), "measure": meas,
-                                      "branch": b, "reason": reason, "what_to_try": hint})
+                    unlocated.append({"kind": entry.get("kind", "fold"), "value": float(sp.p),
+                                      "measure": meas, "branch": b, "reason": reason,
+                                      "what_to_try": hint})
                 else:
                     result.folds.append(entry)
             elif sp.kind == "branch_point":
@@ -724,10 +735,10 @@ def _merge_pitchfork_tips(result: BranchSet, unlocated: list) -> None:
     for f in unlocated:
         br = result.branches[f["branch"]]
         # the bracketing step's arclength bounds the distance to the point
-        width = next((2.0 * max(sp.precision, float(br.ds[min(sp.index, len(br) - 1)]))
+        width = next((2.0 * max(sp.precision if math.isfinite(sp.precision) else 0.0,
+                                 float(br.ds[min(sp.index, len(br) - 1)]))
                       for sp in br.special_points
-                      if sp.kind in ("fold", "branch_point") and not sp.located
-                      and sp.p == f["value"] and math.isfinite(sp.precision)), 0.0)
+                      if sp.kind in ("fold", "branch_point") and sp.p == f["value"]), 0.0)
         if not near_good(f, width + 1e-9):
             keep.append(f)
     unlocated[:] = keep

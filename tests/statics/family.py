@@ -1,10 +1,11 @@
-"""The (Delta, A) fold curve of the free rod, computed once, as the reference for the
+"""The (Delta, A) fold curves of the free rod, computed once, as the reference for the
 one-parameter searches of any scene of the family.
 
 The free-rod equilibria depend on Delta/l_ec and A/l_ec^2 only (the rod length and the
-drop's position place the straight dry arms), so one fold curve in the (Delta, A) plane,
-continued by two-parameter continuation from supp-fig5's fold, gives the folds of every
-scene with B = gamma = 1: at area A, the folds in Delta are the curve's crossings of A. The
+drop's position place the straight dry arms), so the fold curves in the (Delta, A) plane,
+continued by two-parameter continuation from the folds of one reference scene (A = 1.5,
+L = 8), give the folds of every scene with B = gamma = 1 whose folds lie on a curve that
+reaches A = 1.5: at area A, the folds in Delta are the curves' crossings of A. The
 one-parameter search knows nothing of this curve (``fold_curve_seeds=False``).
 """
 
@@ -19,12 +20,21 @@ from elastocap.statics.branches import trace_branches
 A_RANGE = (0.3, 2.4)
 
 
+#: The reference scene: the longest rod of the property family, drop centred, Delta over
+#: the whole rod, a denser search (8 interior samples) than the default.
+REF = {"drop.area": 1.5, "rod.length": 8.0, "drop.wetted_length": 2.5}
+
+
 @functools.lru_cache(maxsize=1)
-def fold_curve():
-    """(q = A values, p = Delta values, states) of the fold curve through supp-fig5's fold."""
-    bs = trace_branches(load_scene("supp-fig5"), error_estimates=False, fold_curve_seeds=False)
-    br = next(b for b in bs.branches for sp in b.folds if sp.located)
-    fold = next(sp for sp in br.folds if sp.located)
+def fold_curves():
+    """Every fold curve (in A) through the folds of the reference scene."""
+    bs = trace_branches(load_scene("supp-fig5", REF), samples=8, error_estimates=False,
+                        fold_curve_seeds=False)
+    folds = []
+    for br in bs.branches:
+        for sp in br.folds:
+            if sp.located and not any(abs(sp.p - f.p) < 1e-8 for f in folds):
+                folds.append(sp)
     base = bs.problem
 
     def family(q):
@@ -33,23 +43,25 @@ def fold_curve():
     s = ContinuationSettings(ds0=0.01, ds_max=0.02, max_steps=3000, p_min=A_RANGE[0],
                              p_max=A_RANGE[1], direction=0, newton_tol=1e-11,
                              check_jacobian=False)
-    fc = continue_fold(family, fold, 1.5, s, parameter="drop.area")
-    return fc, family
+    curves = [continue_fold(family, f, REF["drop.area"], s, parameter="drop.area")
+              for f in folds]
+    return curves, family
 
 
 def curve_folds(A, lo, hi):
-    """The fold curve's crossings of area A with lo <= Delta <= hi, Newton-located."""
+    """The fold curves' crossings of area A with lo <= Delta <= hi, Newton-located."""
     from continuation import locate_fold
 
-    fc, family = fold_curve()
-    q, d = fc.p, fc.observables["p"]
+    curves, family = fold_curves()
     out = []
-    for i in range(len(q) - 1):
-        if (q[i] - A) * (q[i + 1] - A) > 0 or q[i] == q[i + 1]:
-            continue
-        w = (A - q[i]) / (q[i + 1] - q[i])
-        U = (1 - w) * fc.u[i] + w * fc.u[i + 1]
-        sp = locate_fold(family(A), U[:-1], U[-1])
-        if sp.located and lo <= sp.p <= hi:
-            out.append(float(sp.p))
+    for fc in curves:
+        q = fc.p
+        for i in range(len(q) - 1):
+            if (q[i] - A) * (q[i + 1] - A) > 0 or q[i] == q[i + 1]:
+                continue
+            w = (A - q[i]) / (q[i + 1] - q[i])
+            U = (1 - w) * fc.u[i] + w * fc.u[i + 1]
+            sp = locate_fold(family(A), U[:-1], U[-1])
+            if sp.located and lo <= sp.p <= hi:
+                out.append(float(sp.p))
     return sorted(set(np.round(out, 11)))

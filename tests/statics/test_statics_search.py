@@ -127,3 +127,30 @@ def test_range_outside_the_admissible_region_is_bad_input():
     sc = load_scene("supp-fig5", {"drop.distance_from_end": 1.6})
     with pytest.raises(SceneError, match=r"--range: .*admissible region"):
         trace_branches(sc, "drop.wetted_length", (3.3, 4.0))
+
+
+def test_fold_curves_from_the_command_line_pin_the_cusp(tmp_path, capsys):
+    out = tmp_path / "fc"
+    args = ["folds", "supp-fig5", "--curve", "drop.area", "1.2", "1.9", "--json"]
+    assert main([*args, "--out", str(out)]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert list(_walk_numbers(rep)) == []
+    assert (out / "fold-curves-supp-fig5.png").exists()
+    # the cusp of the (Delta, A) fold curve (A = 1.745, where the two folds of A = 1.74 meet)
+    cusp = [c for c in rep["cusps"] if abs(c["value"] - 1.745) < 5e-3]
+    assert len(cusp) == 1 and cusp[0]["error_estimate"] < 1e-10
+    # near the two folds of A = 1.74 (3.5408, 3.5421); the curve is tilted there
+    assert abs(cusp[0]["drop.wetted_length"] - 3.541) < 2e-3
+    # every curve stays in the admissible region (Delta <= L = 4.6)
+    assert all(max(c["drop.wetted_length"]) <= 4.6 + 1e-9 for c in rep["curves"])
+    ref = tmp_path / "ref.json"
+    ref.write_text(json.dumps(rep))
+    assert main(["folds", "supp-fig5", "--curve", "drop.area", "1.2", "1.9", "--check",
+                 str(ref)]) == 0
+    assert "all cusps match" in capsys.readouterr().out
+    rep["cusps"][0]["value"] *= 1 + 1e-6
+    ref.write_text(json.dumps(rep))
+    assert main(["folds", "supp-fig5", "--curve", "drop.area", "1.2", "1.9", "--check",
+                 str(ref)]) == 1
+    assert main(["folds", "supp-fig5", "--curve", "drop.area", "2.0", "3.0"]) == 2
+    assert "contains the scene's drop.area = 1.5" in capsys.readouterr().err

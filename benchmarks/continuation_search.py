@@ -1,0 +1,75 @@
+"""The branch search side by side with another checkout (run:
+``python3 benchmarks/continuation_search.py [--other /path/to/checkout] [--repeat 3]``).
+
+Each scene is traced in a fresh subprocess per code version, alternating versions, after
+one warm-up each (numba compiled and cached): median wall time of the whole diagram
+(search, every branch, folds with error estimates) and the number of branches and folds.
+Scenes: supp-fig5 and scenes of the property family (A 0.5..1.9, L 3..8, the drop off
+centre). Prints a table with the ratio this/other; ``--other`` defaults to /work/main.
+The search's own statistics (seeds tried, fold-curve starts) are printed for this version.
+"""
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parents[1]
+SCENES = [
+    ("supp-fig5", {}),
+    ("A=1.0", {"drop.area": 1.0}),
+    ("A=1.2 L=5", {"drop.area": 1.2, "rod.length": 5.0}),
+    ("A=1.74", {"drop.area": 1.74}),
+    ("A=0.6 L=8 x=3", {"drop.area": 0.6, "rod.length": 8.0, "drop.distance_from_end": 3.0}),
+    ("A=1.9 L=3", {"drop.area": 1.9, "rod.length": 3.0, "drop.wetted_length": 1.0}),
+]
+CHILD = r"""
+import json, sys, time
+from elastocap.scene import load_scene
+from elastocap.statics.branches import trace_branches
+ov = json.loads(sys.argv[1])
+sc = load_scene("supp-fig5", ov)
+t = time.perf_counter()
+bs = trace_branches(sc)
+dt = time.perf_counter() - t
+st = bs.metadata.get("search", {}).get("stats", {})
+print(json.dumps({"t": dt, "branches": len(bs.branches), "folds": len(bs.folds),
+                  "seeds": st.get("seeds_tried"),
+                  "fold_curve_starts": bs.metadata.get("search", {}).get("fold_curve_starts")}))
+"""
+
+
+def run(root: Path, ov: dict) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(root))
+    out = subprocess.run([sys.executable, "-c", CHILD, json.dumps(ov)], env=env, cwd="/tmp",
+                         capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--other", default="/work/main")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    other = Path(args.other)
+    print(f"this: {HERE}\nother: {other}\n")
+    print("| scene | this [s] | other [s] | ratio | this branches/folds | other branches/folds "
+          "| seeds tried (this) |")
+    print("|---|---:|---:|---:|---|---|---:|")
+    for name, ov in SCENES:
+        run(HERE, ov), run(other, ov)  # warm-up (numba caches)
+        a, b = [], []
+        for _ in range(args.repeat):
+            a.append(run(HERE, ov))
+            b.append(run(other, ov))
+        ta = statistics.median(r["t"] for r in a)
+        tb = statistics.median(r["t"] for r in b)
+        print(f"| {name} | {ta:.2f} | {tb:.2f} | {ta / tb:.2f} | {a[0]['branches']}/"
+              f"{a[0]['folds']} | {b[0]['branches']}/{b[0]['folds']} | {a[0]['seeds']} |")
+
+
+if __name__ == "__main__":
+    main()
