@@ -130,3 +130,28 @@ def test_missing_dask_names_the_extra(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "needs dask.distributed" in err and "elastocap[distributed]" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_text_report_marks_every_line_verified_or_not(tmp_path, capsys):
+    from concurrent.futures import ThreadPoolExecutor
+
+    import sweep_fakes as fk
+
+    from elastocap.jsonutil import jsonable
+    from elastocap.scene import load_scene
+    from elastocap.sweep import cli, run_sweep
+
+    scene = load_scene("fig3-strip", {"numerics.accuracy": "draft"})
+    with ThreadPoolExecutor(2) as ex:
+        res = run_sweep(scene, [0.5, 1.0, 3.0], we_sqrts=[0.5, 1.5, 2.5, 3.5],
+                        store=tmp_path / "s.sqlite", refine_tol=0.02, executor=ex,
+                        run_fn=fk.coarse_shift_run, verify_levels=1)
+    cli._print_text(jsonable(res.to_dict()), [])
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("  x = ")]
+    # x = 0.5: only We^1/2 = 0.5 fits on the strip (open); x = 1: threshold 1.53, holds;
+    # x = 3: moves by -0.3
+    assert len(lines) == 3
+    assert "all-open" in lines[0] and "NOT verified: line is all-open, not one bracket" in lines[0]
+    assert "verified: holds at 1.5x the edges" in lines[1]
+    assert "NOT verified: moved, the bracket midpoint moves by -0.3" in lines[2]
+    assert "[level 1: 110 edges]" in lines[2]

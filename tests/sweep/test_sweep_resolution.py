@@ -9,6 +9,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 import sweep_fakes as fk
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from elastocap.scene import load_scene
 from elastocap.sweep import ResultStore, run_sweep, sweep_resolutions
@@ -138,3 +140,50 @@ def test_lines_without_one_bracket_are_marked_not_verified(tmp_path, pool):
     assert b.status == "all-open" and b.verified is False
     assert b.verification["status"] == "not-applicable"
     assert "all-open" in b.verification["reason"]
+
+
+class _ShiftedThreshold:
+    """Encapsulated iff We^1/2 > a + b x + s * [n_edges < n_cut]: a known boundary at every
+    resolution (a callable object: a thread pool needs no pickling)."""
+
+    runner = "fake-shifted-threshold"
+
+    def __init__(self, a, b, s, n_cut):
+        self.a, self.b, self.s, self.n_cut = a, b, s, n_cut
+        self.runner = f"fake-shifted-{a!r}-{b!r}-{s!r}-{n_cut}"
+
+    def threshold(self, x, n):
+        return self.a + self.b * x + (self.s if n < self.n_cut else 0.0)
+
+    def __call__(self, scene_name, scene_json):
+        x, w, n = fk.point(scene_json)
+        return fk.threshold(x, w, self.threshold(x, n))
+
+
+@settings(max_examples=8, deadline=None)
+@given(a=st.floats(0.8, 1.6), b=st.floats(0.0, 0.5), s=st.floats(-0.6, 0.6),
+       tol=st.sampled_from([0.02, 0.05, 0.1]))
+def test_verification_finds_the_known_boundary_at_each_resolution(tmp_path_factory, a, b, s,
+                                                                  tol):
+    fn = _ShiftedThreshold(a, b, s, n_cut=100)  # level 0 has 73 edges, level 1 110
+    wes = [0.5, 1.25, 2.0, 2.75, 3.5]
+    with ThreadPoolExecutor(2) as ex:
+        res = run_sweep(STRIP, [1.0, 3.0], we_sqrts=wes, refine_tol=tol, executor=ex,
+                        store=tmp_path_factory.mktemp("h") / "s.sqlite", run_fn=fn,
+                        verify_levels=1)
+    n0, n1 = res.resolutions[0].n_edges, res.resolutions[1].n_edges
+    assert n0 < 100 <= n1
+    for bd in res.boundary:
+        t0, t1 = fn.threshold(bd.x, n0), fn.threshold(bd.x, n1)
+        v = bd.verification
+        if not 0.5 < t0 < 3.5:  # outside the grid: no bracket to verify
+            assert v["status"] == "not-applicable" and bd.verified is False
+            continue
+        lo0, hi0 = v["brackets"][0]["low"], v["brackets"][0]["high"]
+        assert lo0 < t0 + 1e-9 and t0 - 1e-9 <= hi0 and hi0 - lo0 <= tol
+        if lo0 < t1 - 1e-9 and t1 + 1e-9 < hi0:  # the finer boundary inside the bracket
+            assert v["status"] == "holds" and bd.verified is True
+        elif abs(t1 - lo0) > 1e-9 and abs(t1 - hi0) > 1e-9 and 0.5 < t1 < 3.5:
+            assert v["status"] == "moved" and bd.verified is False and bd.level == 1
+            assert bd.low < t1 + 1e-9 and t1 - 1e-9 <= bd.high and bd.high - bd.low <= tol
+            assert v["shift"] == pytest.approx(t1 - t0, abs=tol)
