@@ -531,7 +531,7 @@ def cmd_demo(args) -> int:
 def _load_impact(npz: Path):
     """An impact result and its scene from the ``.npz`` that ``elastocap impact`` writes."""
     from dynamics import SimulationResult
-    from elastocap.crossings import turning_measures
+    from elastocap.geometry import turning_measures
     from elastocap.impact import ImpactResult
     from elastocap.scene import build_scene
 

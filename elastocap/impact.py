@@ -62,7 +62,7 @@ from elastocap.criteria import frame_verdicts, impact_verdict
 from elastocap.crossings import first_crossing_frames
 from elastocap.drop import capillary_energy_and_gradient
 from elastocap.geometry import arc_points, turning_measures
-from elastocap.scene import Scene, SceneError
+from elastocap.scene import Numerics, Scene, SceneError
 
 __all__ = [
     "ImpactEffects",
@@ -309,11 +309,16 @@ def _check_dt(scene: Scene, dt: float, n: int) -> None:
             f"numerics.rest_time = {num.rest_time:g}, over which the rest criterion reads "
             f"the kinetic energy; dt <= {num.rest_time / MIN_REST_STEPS:.4g} is needed: set "
             "numerics.dt")
-    if num.t_max / dt > MAX_IMPACT_STEPS:
+    steps = num.t_max / dt
+    if steps > MAX_IMPACT_STEPS:
+        default_t_max = Numerics().t_max
+        if not num.dt and num.t_max > default_t_max and default_t_max / dt <= MAX_IMPACT_STEPS:
+            key, value = "numerics.t_max", num.t_max  # the long t_max, not the rod, is at fault
         raise SceneError(
             key, value,
-            f"gives a time step dt = {dt:.4g}{origin}: {num.t_max / dt:.3g} steps to "
-            f"numerics.t_max = {num.t_max:g}, more than {MAX_IMPACT_STEPS:.0e}")
+            f"gives {steps:.3g} time steps of dt = {dt:.4g}{origin} to numerics.t_max = "
+            f"{num.t_max:g}, more than the {MAX_IMPACT_STEPS:.0e} an impact can take; use a "
+            "smaller t_max or a larger dt")
 
 
 def _wet_interval(scene: Scene) -> tuple[float, float]:

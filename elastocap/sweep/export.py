@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from elastocap.io import atomic_path
+from elastocap.io import atomic_path, check_writable_file
 from elastocap.sweep.executors import MissingExtraError
 from elastocap.sweep.store import COLUMNS, ResultStore, StoreError, decode_positions
 
@@ -33,16 +33,14 @@ def _pandas(what: str):
 def check_export(path) -> Path:
     """Refuse (ValueError / MissingExtraError, before anything is written) an export file
     this installation cannot write: suffix other than .csv / .parquet, no pandas, no
-    pyarrow for Parquet, a directory, or a missing parent folder."""
+    pyarrow for Parquet, a directory, or a place that cannot be written."""
     path = Path(path)
     if path.suffix.lower() not in EXPORT_SUFFIXES:
         raise ValueError(f"--export: got {str(path)!r}; expected a file name ending in "
                          f"{' or '.join(EXPORT_SUFFIXES)}")
     if path.is_dir():
         raise ValueError(f"--export: got {str(path)!r}; a directory, expected a file name")
-    if path.parent != Path("") and not path.parent.is_dir():
-        raise ValueError(f"--export: got {str(path)!r}; the folder {str(path.parent)!r} does "
-                         "not exist")
+    check_writable_file(path, "--export")  # its folder may be new: made when written
     try:
         _pandas("--export")
         if path.suffix.lower() == ".parquet":
@@ -99,6 +97,7 @@ def export_runs(store, path) -> Path:
     temporary file next to it, then renamed over it."""
     path = check_export(path)
     df = load(store)
+    path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:
         if path.suffix.lower() == ".csv":
             df.to_csv(tmp, index=False)

@@ -41,20 +41,32 @@ def test_edge_scenes_run_and_stay_finite(over):
     scene = load_scene("supp-fig5", {**over, **SHORT})
     assert _finite_tree(scene.summary()["derived"])
     r = run_impact(scene)
-    assert r.outcome in ("open", "encapsulated"), r.message
+    # a run that stops (SHORT) before it comes to rest is undecided, with its reason
+    if r.at_rest:
+        assert r.outcome in ("open", "encapsulated"), r.message
+    else:
+        assert r.outcome == "undecided" and "did not come to rest" in r.undecided_reason
     assert np.all(np.isfinite(r.simulation.positions))
     assert np.all(np.isfinite(r.simulation.energies["total"]))
 
 
 def test_tiny_area_statics_is_the_flat_rod():
-    """A = 1e-9: the cap is a sliver (phi ~ 2e-9), the rod stays flat to O(A)."""
-    scene = load_scene("supp-fig5", {"drop.area": 1e-9})
+    """A = 1e-3 (the smallest the statics accepts): the cap is a sliver, the rod stays flat
+    to O(A) and the energy is gamma * lambda ~ gamma * Delta."""
+    scene = load_scene("supp-fig5", {"drop.area": 1e-3})
     P = problem_for(scene)
     u = newton(P, np.zeros(P.N + 2), 2.5, 1e-13)
     obs = P.observables(u, 2.5)
-    assert abs(obs["measure"]) < 1e-8
-    assert abs(obs["cap_angle"]) < 1e-8
-    assert obs["energy"] == pytest.approx(2.5, rel=1e-12)  # gamma * lambda ~ gamma * Delta
+    assert abs(obs["measure"]) < 1e-3
+    assert abs(obs["cap_angle"]) < 1e-2
+    assert obs["energy"] == pytest.approx(2.5, rel=1e-6)
+
+
+def test_too_tiny_area_statics_is_refused_by_name():
+    from elastocap.scene import SceneError
+
+    with pytest.raises(SceneError, match=r"drop.area: got 1e-09; the free-rod statics resolves"):
+        problem_for(load_scene("supp-fig5", {"drop.area": 1e-9}))
 
 
 def test_tiny_area_impact_stays_flat():

@@ -129,7 +129,7 @@ def test_stale_branch_files_removed_on_rerun(tmp_path):
     from elastocap.statics.branches import BranchSet, trace_branches
 
     bs = trace_branches(
-        load_scene("supp-fig5", ["numerics.accuracy=draft"]), error_estimates=False, grid=3
+        load_scene("supp-fig5", ["numerics.accuracy=draft"]), error_estimates=False
     )
     assert len(bs.branches) >= 3
     bs.save(tmp_path)
