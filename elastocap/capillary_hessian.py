@@ -1,6 +1,6 @@
 """Stiffness of the drop: the Hessian of gamma lambda as a band plus a rank-5 part.
 
-The implicit stepper (:mod:`dynamics.implicit`) puts the stiffness of force effects into
+The midpoint method (:mod:`dynamics.midpoint`) puts the stiffness of force effects into
 its Newton matrix when the effect supplies a ``stiffness`` kernel (the optional hook of the
 effect protocol, :mod:`dynamics.effects`).  Without it, Newton converges only linearly
 at a rate ``~ dt**2 |K_cap| / (4 m)``: 6-9 iterations a step on fig3-strip (gamma = 40) and

@@ -102,7 +102,7 @@ DT_FRACTION_GROUND = 0.7
 IMPLICIT_PERIOD_FRACTION = 1.0 / 400.0
 #: ... but with a ground at most this multiple of the explicit bound (0.0189 on fig3-strip
 #: at 198 edges). With the drop's stiffness in the Newton matrix and contact changes as
-#: low-rank updates (dynamics.implicit), what limits the step there is the fast bending
+#: low-rank updates (dynamics.midpoint), what limits the step there is the fast bending
 #: waves the midpoint rule neither resolves nor damps, plus the contact changes. Measured
 #: (benchmarks/dynamics_implicit.py, sections 6-7): at 8x no rejected steps, energy rise
 #: <= 8.4e-5 gamma Delta, outcomes as RATTLE's on the Fig 3d line x = 2 ... 3 with

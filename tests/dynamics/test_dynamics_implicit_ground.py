@@ -93,7 +93,7 @@ def test_dropped_rod_does_not_penetrate_or_bounce_and_loses_energy(dt):
     assert zc[k:].max() <= zc[k] + 1e-12
     # the rod ends flat on the ground (its kinetic energy, 0.06 at dt = 0.01 and 0.03 at
     # 0.005, is the unprojected velocity component along the edges that the midpoint rule
-    # carries, see dynamics.implicit: the positions do not move)
+    # carries, see dynamics.midpoint: the positions do not move)
     assert z[-1].max() < 1e-9
 
 
