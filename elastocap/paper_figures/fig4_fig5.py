@@ -1,11 +1,11 @@
 """Figs 4 and 5: time sequences of the strip (rigid, floppy and no encapsulation; a secondary
 drop extending the footprint mid-run).
 
-Parameters are placed relative to the model's boundary (README, "Fig 3d"), as the paper
+Parameters are placed relative to the model's boundary (docs/guide/phase-diagrams.md), as the paper
 did: A = rigid encapsulation near the end (x = 1), B = floppy encapsulation further from the
 end and faster (x = 3, We^1/2 = 2.5), C = no encapsulation at the same x with a slower
-impact (x = 3, We^1/2 = 1.5); D = x = 5 at We^1/2 = 2.0 (open and at rest under both
-criteria; that line's boundary at the default resolution is 2.75-2.81, measured), D' = the
+impact (x = 3, We^1/2 = 1.5); D = x = 5 at We^1/2 = 2.0 (below that line's boundary,
+which lies between 2.4 and 2.9 at 67 to 398 edges: docs/guide/phase-diagrams.md), D' = the
 same run with S2 moved by 0.45 l_eg (equivalent to We^1/2 = 3.6, inside the encapsulation
 region) at t = 0.5 (~9 ms), the paper's secondary drop.
 Same damping, final time and resolution as Fig 3d (:func:`fig3d_resolution`: the edges
