@@ -741,7 +741,7 @@ NOT_HANDLED = (
     "rod-rod contact (the strip may cross itself: such states are marked inadmissible, "
     "not excluded); branches not reached from the seeds (deposition and fold at "
     f"Delta = {', '.join(f'{d:g}' for d in SEED_DELTAS)}); only drop.wetted_length "
-    ""
+    "as the parameter"
 )
 
 
@@ -1216,7 +1216,11 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
                 raise ValueError(f"n_refined: got {n_fine}; expected it to differ from n = "
                                  f"{strip.n}")
             fine = strip.with_(n=n_fine)
-            fb, fl = _trace_all(fine, lo, hi)
+            fprog = None
+            if progress is not None:
+                def fprog(label, br):
+                    progress(f"{label} (n = {n_fine}, error estimates)", br)
+            fb, fl = _trace_all(fine, lo, hi, fprog)
             ffolds, _ = _special(fine, fb, fl)
             fpoints = [_branch_points(fine, br) for br in fb]
             fkinds = _kind_changes(fine, fb, fl)
