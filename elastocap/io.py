@@ -290,10 +290,16 @@ class OutputFolder:
         return self.write_text(name, json.dumps(jsonable(obj), indent=indent) + "\n")
 
     def savefig(self, fig_or_plot, name: str, **kwargs) -> Path:
-        """Save a matplotlib figure (or call ``fig_or_plot(path)``) atomically as ``name``."""
+        """Save a matplotlib figure atomically as ``name``; or call ``fig_or_plot(path)``,
+        a plotting function that draws and saves, and close the figure it returns (it was
+        made for this file: pyplot would otherwise keep it open)."""
         with self.file(name) as tmp:
             if callable(fig_or_plot):
-                fig_or_plot(tmp)
+                fig = fig_or_plot(tmp)
+                if hasattr(fig, "savefig"):
+                    import matplotlib.pyplot as plt
+
+                    plt.close(fig)
             else:
                 fig_or_plot.savefig(tmp, **kwargs)
         return self.path / name
