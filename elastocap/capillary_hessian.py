@@ -46,7 +46,7 @@ import math
 import numba
 import numpy as np
 
-from elastocap.drop import _locate, cap_geometry, cap_tau_derivatives, wet_polygon_area
+from elastocap.drop import cap_geometry, cap_tau_derivatives, locate_on_rod, wet_polygon_area
 
 __all__ = ["capillary_stiffness", "CAPILLARY_RANK", "stiffness_dense"]
 
@@ -114,8 +114,8 @@ def capillary_stiffness(x, v, t, params, edge_len, mass, K, U, C):
     for i in range(n - 1):
         s[i + 1] = s[i] + edge_len[i]
     area, s1, s2, gamma = params[0], params[1], params[2], params[3]
-    i1, w1 = _locate(s1, s)
-    i2, w2 = _locate(s2, s)
+    i1, w1 = locate_on_rod(s1, s)
+    i2, w2 = locate_on_rod(s2, s)
     p = i2 - i1
     p0x = (1.0 - w1) * x[i1, 0] + w1 * x[i1 + 1, 0]
     p0z = (1.0 - w1) * x[i1, 1] + w1 * x[i1 + 1, 1]

@@ -18,7 +18,7 @@ import math
 import numba
 import numpy as np
 
-from elastocap.drop import _locate, capillary_energy_and_gradient
+from elastocap.drop import capillary_energy_and_gradient, locate_on_rod
 from elastocap.geometry import segments_cross
 
 __all__ = ["INTERFACE_POINTS", "first_crossing_frames"]
@@ -30,7 +30,7 @@ INTERFACE_POINTS = 80
 @numba.njit(cache=True)
 def _point_at(x, s_nodes, s):
     """Position at arclength s on the polyline (linear interpolation, clipped to the ends)."""
-    i, w = _locate(s, s_nodes)
+    i, w = locate_on_rod(s, s_nodes)
     return (1.0 - w) * x[i, 0] + w * x[i + 1, 0], (1.0 - w) * x[i, 1] + w * x[i + 1, 1]
 
 

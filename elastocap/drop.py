@@ -50,6 +50,7 @@ import numpy as np
 
 __all__ = [
     "CapGeometry",
+    "locate_on_rod",
     "cap_geometry",
     "cap_half_angle",
     "cap_ratio",
@@ -277,7 +278,7 @@ def cap_tau_derivatives(tau, sin_tau, cos_tau, a1, d):
 
 
 @numba.njit(cache=True)
-def _locate(s, s_nodes):
+def locate_on_rod(s, s_nodes):
     """Edge index i and fraction w in [0, 1] with s = (1-w) s_nodes[i] + w s_nodes[i+1]."""
     n = s_nodes.shape[0]
     if s <= s_nodes[0]:
@@ -315,8 +316,8 @@ def wet_polygon_area(x, s_nodes, s1, s2):
         Area (length^2), positive when the loop x1 -> wet rod -> x2 -> chord -> x1 turns
         counterclockwise (the rod cupped under the drop).
     """
-    i1, w1 = _locate(s1, s_nodes)
-    i2, w2 = _locate(s2, s_nodes)
+    i1, w1 = locate_on_rod(s1, s_nodes)
+    i2, w2 = locate_on_rod(s2, s_nodes)
     x1x = (1.0 - w1) * x[i1, 0] + w1 * x[i1 + 1, 0]
     x1z = (1.0 - w1) * x[i1, 1] + w1 * x[i1 + 1, 1]
     x2x = (1.0 - w2) * x[i2, 0] + w2 * x[i2 + 1, 0]
@@ -372,8 +373,8 @@ def capillary_energy_and_gradient(x, s_nodes, s1, s2, area, gamma, grad):
     cos(tau) c into the line tension along the interface, exactly the forces [6]-[8] of the
     paper lumped onto the nodes.
     """
-    i1, w1 = _locate(s1, s_nodes)
-    i2, w2 = _locate(s2, s_nodes)
+    i1, w1 = locate_on_rod(s1, s_nodes)
+    i2, w2 = locate_on_rod(s2, s_nodes)
     x1x = (1.0 - w1) * x[i1, 0] + w1 * x[i1 + 1, 0]
     x1z = (1.0 - w1) * x[i1, 1] + w1 * x[i1 + 1, 1]
     x2x = (1.0 - w2) * x[i2, 0] + w2 * x[i2 + 1, 0]

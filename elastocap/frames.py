@@ -4,9 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from elastocap.impact import ImpactResult, _interface
+from elastocap.drop import capillary_energy_and_gradient
+from elastocap.geometry import arc_points
+from elastocap.impact import ImpactResult
 
 __all__ = ["frame_strip"]
+
+
+def interface_points(x, s_nodes, area, s1, s2, gamma):
+    """Drop interface points (k, 2) of a rod configuration."""
+    g = np.zeros_like(x)
+    _e, tau, _k = capillary_energy_and_gradient(x, s_nodes, s1, s2, area, gamma, g)
+    p1 = np.array([np.interp(s1, s_nodes, x[:, 0]), np.interp(s1, s_nodes, x[:, 1])])
+    p2 = np.array([np.interp(s2, s_nodes, x[:, 0]), np.interp(s2, s_nodes, x[:, 1])])
+    return arc_points(p1, p2, tau, 80), tau
 
 
 def _settle_time(times, measures, tol=0.15):
@@ -83,7 +94,7 @@ def frame_strip(
             _, _, j, val = fired.pop(0)
             cap[j] = val
         x = pos[i]
-        iface, _tau = _interface(x, s_nodes, cap[0], cap[1], cap[2], cap[3])
+        iface, _tau = interface_points(x, s_nodes, cap[0], cap[1], cap[2], cap[3])
         wet = (s_nodes >= cap[1]) & (s_nodes <= cap[2])
         p1 = np.array([np.interp(cap[1], s_nodes, x[:, 0]), np.interp(cap[1], s_nodes, x[:, 1])])
         p2 = np.array([np.interp(cap[2], s_nodes, x[:, 0]), np.interp(cap[2], s_nodes, x[:, 1])])

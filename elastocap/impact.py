@@ -60,8 +60,7 @@ from elastocap._version import __version__
 from elastocap.capillary import Capillary
 from elastocap.criteria import frame_verdicts, impact_verdict
 from elastocap.crossings import first_crossing_frames
-from elastocap.drop import capillary_energy_and_gradient
-from elastocap.geometry import arc_points, turning_measures
+from elastocap.geometry import turning_measures
 from elastocap.scene import Numerics, Scene, SceneError
 
 __all__ = [
@@ -130,15 +129,6 @@ DT_RETRIES = 2
 FRAME_SPACING = 0.05
 #: Upper bound on the number of frames (memory: frames x nodes x 16 bytes).
 MAX_FRAMES = 20001
-
-
-def _interface(x, s_nodes, area, s1, s2, gamma):
-    """Drop interface points (k, 2) of a rod configuration."""
-    g = np.zeros_like(x)
-    _e, tau, _k = capillary_energy_and_gradient(x, s_nodes, s1, s2, area, gamma, g)
-    p1 = np.array([np.interp(s1, s_nodes, x[:, 0]), np.interp(s1, s_nodes, x[:, 1])])
-    p2 = np.array([np.interp(s2, s_nodes, x[:, 0]), np.interp(s2, s_nodes, x[:, 1])])
-    return arc_points(p1, p2, tau, 80), tau
 
 
 @dataclass
