@@ -100,7 +100,6 @@ GUIDE_ORDER = [
     "dynamics",
     "time-stepping",
     "continuation",
-    "sweeps",
     "phase-diagrams",
     "fig3d",
     "strip",
