@@ -159,13 +159,15 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
 
     scene = build_scene(json.loads(scene_json), scene_name)
     res = run_impact(scene)
+    if res.outcome == "failed":  # a numerical failure: the sweep records it with the reason
+        raise RuntimeError(f"impact failed: {res.message}")
     final = res.simulation.positions[-1]
     comp = companion_outcome(final, scene)
     settings = dict(res.settings)
     return {
         "outcome": res.outcome,
         # an undecided run says why (None for a decided one)
-        "reason": getattr(res, "reason", None),
+        "reason": res.undecided_reason,
         "companion_outcome": comp.outcome,
         "n_edges": settings.get("n_edges"),
         "dt": settings.get("dt"),

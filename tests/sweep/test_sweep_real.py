@@ -61,6 +61,9 @@ def test_real_sweep_records_what_run_impact_returns(tmp_path):
     direct = run_impact(sc)
     assert (r["outcome"], r["final_measure"], r["steps"], r["t_end"], r["status"]) == (
         direct.outcome, direct.final_measure, direct.steps, direct.t_end, direct.status)
+    assert r["reason"] == direct.undecided_reason
+    # t_max = 8 stops these runs before rest: each stored undecided row says why
+    assert all(q["reason"] for q in rows if q["outcome"] == "undecided")
     assert r["rod_crossing_time"] == direct.rod_crossing_time
     assert (r["n_edges"], r["dt"]) == (direct.settings["n_edges"], direct.settings["dt"])
     np.testing.assert_array_equal(r["final_positions"], direct.simulation.positions[-1])
