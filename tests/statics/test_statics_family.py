@@ -12,7 +12,7 @@ import math
 
 import pytest
 from family import curve_folds
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, given, settings, target
 from hypothesis import strategies as st
 
 from elastocap.scene import load_scene
@@ -86,7 +86,7 @@ def test_search_agrees_with_the_fold_curve(A, L, cfrac, f_lo, f_hi):
 @settings(max_examples=60, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow])
 @given(A=st.floats(0.5, 1.9), L=st.floats(3.0, 8.0), cfrac=st.floats(0.0, 1.0),
-       f_lo=st.floats(0.02, 0.9), width=st.floats(0.05, 1.0))
+       f_lo=st.floats(0.02, 0.7), width=st.floats(0.2, 1.0))
 def test_random_admissible_scenes_agree_with_the_fold_curve(A, L, cfrac, f_lo, width):
     c, lo, _ = _geometry(A, L, cfrac, f_lo, 1.0)
     dmax = 2.0 * min(c, L - c)
@@ -94,6 +94,8 @@ def test_random_admissible_scenes_agree_with_the_fold_curve(A, L, cfrac, f_lo, w
     if not hi - lo > 1e-3 * L or not math.isfinite(hi):
         return
     n = check_scene(A, L, c, lo, hi)
+    # steer the generation towards scenes with folds (where agreement says most)
+    target(float(n), label="folds in range")
     # one line per agreeing scene (visible with pytest -s): the count the docs quote
     print(f"agree: A={A:.6g} L={L:.6g} centre={c:.6g} Delta=[{lo:.6g}, {hi:.6g}] "
           f"folds={n}")
