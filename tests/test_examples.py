@@ -44,7 +44,8 @@ def test_trace_and_check_folds(tmp_path):
     # draft (16 LGL intervals): the error estimate is the error, and it is ~1e-9
     assert err <= fold["error_estimate"] + 1e-12
     assert 1e-11 < fold["error_estimate"] < 1e-8
-    assert fold["stability_change"] == "0->1"
+    # one stable and one unstable side (the order follows the direction of tracing)
+    assert sorted(fold["stability_change"].split("->")) == ["0", "1"]
     for f in res["files"]:
         assert Path(f).stat().st_size > 30
     saved = json.loads((tmp_path / "branches" / "branches.json").read_text())

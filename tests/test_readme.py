@@ -59,6 +59,7 @@ def test_readme_has_three_api_examples():
     blocks = _python_blocks()
     assert len(blocks) == 3
     assert "trace_branches" in blocks[0] and "assert_folds" in blocks[0]
+    assert "import elastocap as ec" in blocks[0]
     assert "run_impact" in blocks[1] and "run_overlay" in blocks[1]
     assert "run_sweep" in blocks[2] and "csv" in blocks[2]
 
