@@ -72,7 +72,6 @@ def test_other_rod_lists_one_fold_and_no_spurious_one():
     ("numerics.max_steps", 3, "10 <= max_steps <= 100000"),
     ("rod.length", 1e300, "rod.length / l_ec <= 20"),
     ("drop.area", 1e300, "drop.area / l_ec^2 <= 1000"),
-    ("drop.area", 1e-300, "0.001 <= drop.area / l_ec^2"),
 ])
 def test_out_of_range_settings_exit_2_and_write_nothing(tmp_path, capsys, key, value, msg):
     out = tmp_path / "o"
