@@ -94,16 +94,13 @@ def _escape_bars(lines: list[str]) -> list[str]:
 #: not be written yet), then any other page of guide/ in alphabetical order.
 GUIDE_ORDER = [
     "scenes",
-    "free-rod-statics",
     "statics-search",
     "supp-fig5-damping",
-    "dynamics",
     "time-stepping",
     "continuation",
     "phase-diagrams",
     "fig3d",
     "strip",
-    "strip-statics",
     "accuracy",
 ]
 
