@@ -162,7 +162,9 @@ def statics_estimate(scene: Scene) -> dict:
 
         n, key, val = edge_count(scene), "numerics.n_edges", num.n_edges
     else:
-        from elastocap.statics.branches import ACCURACY_N
+        from elastocap.statics.branches import ACCURACY_N, check_statics_scene
+
+        check_statics_scene(scene)  # out of the resolved ranges: refused before any work
 
         n = num.cheb_points or ACCURACY_N[num.accuracy]
         key, val = "numerics.cheb_points", num.cheb_points

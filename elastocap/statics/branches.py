@@ -41,6 +41,7 @@ __all__ = [
     "ACCURACY_N",
     "BranchSet",
     "StaticsError",
+    "check_statics_scene",
     "admissible_range",
     "find_folds",
     "newton",
@@ -78,7 +79,9 @@ class StaticsError(RuntimeError):
     """A numerical failure of the statics (no branch found, ...); the message diagnoses it."""
 
 
-def _check_statics_scene(scene: Scene) -> None:
+def check_statics_scene(scene: Scene) -> None:
+    """Refuse (SceneError naming the key and the range) a scene the free-rod statics cannot
+    resolve: gravity or a ground, or a rod length or drop area outside the resolved ranges."""
     if scene.effects.gravity > 0.0 or scene.effects.ground:
         raise SceneError(
             "effects",
@@ -86,6 +89,7 @@ def _check_statics_scene(scene: Scene) -> None:
             "statics handles the free rod without gravity or ground; set effects.gravity=0 "
             "and effects.ground=false (the contact statics of the strip scene is not built yet)",
         )
+    _check_resolved(scene)
 
 
 def _check_resolved(scene: Scene) -> None:
@@ -107,8 +111,7 @@ def problem_for(
     scene: Scene, parameter: str = "drop.wetted_length", N: int | None = None, nodes="lgl"
 ) -> WetElasticaProblem:
     """The discretized equilibrium problem of a scene, continued in ``parameter``."""
-    _check_statics_scene(scene)
-    _check_resolved(scene)
+    check_statics_scene(scene)
     if parameter not in PARAMETERS:
         raise SceneError("--param", parameter, f"expected one of {', '.join(PARAMETERS)}")
     if N is None:

@@ -50,7 +50,7 @@ from elastocap.drop import (
     capillary_energy_and_gradient,
     wet_polygon_area,
 )
-from elastocap.statics.shape import arc_points, count_crossings
+from elastocap.geometry import arc_points, count_crossings
 
 __all__ = [
     "DiscreteStrip",
@@ -395,7 +395,9 @@ def discrete_strip_for(scene, n=None) -> DiscreteStrip:
     """The discrete strip of a scene with gravity and the ground (``fig3-strip``).
 
     ``n`` defaults to the scene's impact resolution (``numerics.n_edges``, or the accuracy
-    preset's edges when it is 0, as :func:`elastocap.impact.impact_settings` resolves it).
+    preset's edges when it is 0, as :func:`elastocap.impact.edge_count` resolves it; the
+    impact's own checks of the wet interval at the scene's Delta do not apply to statics, which
+    trace across Delta).
     """
     if not (scene.effects.gravity > 0.0 and scene.effects.ground):
         raise ValueError(
@@ -403,9 +405,9 @@ def discrete_strip_for(scene, n=None) -> DiscreteStrip:
             f"{scene.effects.ground}; the strip statics needs gravity > 0 and ground = true"
         )
     if n is None:
-        from elastocap.impact import impact_settings
+        from elastocap.impact import edge_count
 
-        n = impact_settings(scene)["n_edges"]
+        n = edge_count(scene)
     d = scene.drop
     return DiscreteStrip(
         int(n), scene.rod.length, scene.distance_from_end, d.wetted_length, d.area,

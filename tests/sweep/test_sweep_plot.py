@@ -44,7 +44,7 @@ def test_markers_boundary_and_disagreements(tmp_path):
     np.testing.assert_allclose(np.asarray(eb.lines[0].get_ydata(), float), [1.0, 2.0])
     segs = eb.lines[2][0].get_segments()
     np.testing.assert_allclose([s[1][0] - s[0][0] for s in segs], [0.2, 0.3])
-    assert ax.get_ylabel() == "x / ℓ_eg" and "We" in ax.get_xlabel()
+    assert ax.get_ylabel() == r"$x/\ell_{eg}$" and "We" in ax.get_xlabel()
     assert (tmp_path / "p.png").stat().st_size > 1000
     assert eb.get_label() == "boundary (not verified: run with --verify) (2)"
     assert not [ln for ln in ax.get_lines() if ln.get_label().startswith("undecided")]

@@ -116,7 +116,9 @@ def test_killed_sweep_resumes_without_loss_or_duplicates(tmp_path):
         after_kill = st.count()
         # no half-written row: every required column is filled
         for r in st.rows():
-            assert r["outcome"] in ("open", "encapsulated") and r["status"] and r["created_utc"]
+            assert r["outcome"] in ("open", "encapsulated", "undecided")
+            assert r["status"] and r["created_utc"] and (r["outcome"] != "undecided"
+                                                         or r["reason"])
     assert after_kill >= stored_at_kill >= 5
 
     resumed = subprocess.run(_sweep_cmd(store, tmp_path / "o2"), capture_output=True, text=True,
