@@ -6,16 +6,15 @@ import numpy as np
 import pytest
 
 from elastocap.crossings import first_crossing_frames
-from elastocap.geometry import turning_measure, turning_measures
+from elastocap.frames import interface_points
+from elastocap.geometry import count_crossings, turning_measure, turning_measures
 from elastocap.impact import (
     ENERGY_RISE_TOL,
-    _interface,
     energy_rise,
     impact_settings,
     run_impact,
 )
 from elastocap.scene import SceneError, load_scene
-from elastocap.statics.shape import count_crossings
 
 
 def test_energy_rise_restarts_at_events_and_ignores_frames_at_an_event():
@@ -81,7 +80,7 @@ def test_compiled_crossings_match_the_frame_by_frame_reference():
     ref_if = next(
         k
         for k, p in enumerate(sim.positions)
-        if k > 0 and count_crossings(_interface(p, s_nodes, *cap)[0], p, False, 1, 78) > 0
+        if k > 0 and count_crossings(interface_points(p, s_nodes, *cap)[0], p, False, 1, 78) > 0
     )
     assert (k_rod, k_if) == (ref_rod, ref_if)
     assert r.rod_crossing_time == sim.times[k_rod] and r.interface_crossing_time == sim.times[k_if]
