@@ -111,10 +111,11 @@ def plot_bistability(scene: Scene, bs: BranchSet, curves, q_param: str, path=Non
     q0 = bs.problem.get(q_param)
     ax.axhline(q0, color="tab:blue", ls=":", lw=1, label=f"scene: {q_param} = {q0:g}")
     for f in bs.folds:
-        ax.plot(f["value"], q0, "X", color="k", ms=7)
+        ax.plot(f["value"], q0, "X", color="k", ms=7,
+                label="✕ fold of the scene (one-parameter search)")
     # beyond Delta = L there is no rod to wet
     ax.set_xlim(0, 1.02 * L)
-    ax.set_xlabel("wetted length Δ")
+    ax.set_xlabel(r"wetted length $\Delta$")
     ax.set_ylabel({"drop.area": "drop area A"}.get(q_param, q_param))
     ax.set_title(f"{scene.name}: bistability map (folds continued in {q_param})", fontsize=9)
     handles, labels = ax.get_legend_handles_labels()
