@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -59,7 +60,8 @@ class SpecialPoint:
     precision : float
         For located points, the size of the last Newton correction of p (or the
         arclength bracket of a bisection); for detected-only points, the width
-        of the bracketing parameter interval.
+        of the bracketing parameter interval. NaN when not estimated (``null`` in
+        the JSON that :meth:`Branch.to_dict` writes).
     located : bool
         True if the point solves its defining system (not just bracketed).
     name : str
@@ -159,7 +161,7 @@ class Branch:
     # ------------------------------------------------------------------ storage
     def to_dict(self) -> dict:
         """JSON-able summary (no state arrays)."""
-        return {
+        return _jsonable({
             "schema_version": SCHEMA_VERSION,
             "parameter": self.parameter,
             "n_points": len(self),
@@ -170,11 +172,10 @@ class Branch:
             "special_points": [
                 {"kind": s.kind, "index": int(s.index), "p": float(s.p),
                  "precision": float(s.precision), "located": bool(s.located), "name": s.name,
-                 "data": {k: _jsonable(v) for k, v in s.data.items()
-                          if not isinstance(v, np.ndarray)}}
+                 "data": {k: v for k, v in s.data.items() if not isinstance(v, np.ndarray)}}
                 for s in self.special_points
             ],
-        }
+        })
 
     def save(self, path) -> Path:
         """Write ``path`` (.npz, JSON metadata inside) and a ``.json`` summary beside it.
@@ -199,9 +200,9 @@ class Branch:
                 if isinstance(v, np.ndarray):
                     arrays[f"sp{i}:{k}"] = v
         summary = self.to_dict()
-        arrays["metadata_json"] = np.array(json.dumps(summary))
+        arrays["metadata_json"] = np.array(json.dumps(summary, allow_nan=False))
         np.savez(path, **arrays)
-        path.with_suffix(".json").write_text(json.dumps(summary, indent=2))
+        path.with_suffix(".json").write_text(json.dumps(summary, indent=2, allow_nan=False))
         return path
 
     @classmethod
@@ -235,7 +236,8 @@ class Branch:
                 sps.append(SpecialPoint(
                     kind=d["kind"], index=d["index"], p=d["p"],
                     u=z[f"sp{i}:u"] if f"sp{i}:u" in files else None,
-                    precision=d["precision"], located=d["located"], name=d["name"], data=data))
+                    precision=math.nan if d["precision"] is None else d["precision"],
+                    located=d["located"], name=d["name"], data=data))
             return cls(
                 p=z["p"], u=z["u"] if "u" in files else None,
                 tangent=z["tangent"] if "tangent" in files else None,
@@ -333,10 +335,13 @@ class Branch:
 
 
 def _jsonable(v):
+    """Plain JSON data: numpy scalars as Python numbers, NaN and +-inf as ``None`` (JSON
+    has neither; a special point's ``precision`` ``None`` means not estimated)."""
     if isinstance(v, np.integer):
         return int(v)
-    if isinstance(v, np.floating):
-        return float(v)
+    if isinstance(v, np.floating | float):
+        v = float(v)
+        return v if math.isfinite(v) else None
     if isinstance(v, dict):
         return {k: _jsonable(x) for k, x in v.items()}
     if isinstance(v, list | tuple):

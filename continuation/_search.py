@@ -176,10 +176,26 @@ class SearchSettings:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
+        """Plain JSON data: every field; an undamped ``max_step`` (inf) is ``None`` (JSON
+        ``null``: no limit). :meth:`from_dict` reads it back."""
         d = dataclasses.asdict(self)
         d["sample_values"] = list(self.sample_values)
         d["max_step"] = None if math.isinf(self.max_step) else self.max_step
         return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> SearchSettings:
+        """The settings :meth:`to_dict` wrote (``max_step`` ``None``: undamped)."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise ValueError(f"SearchSettings.from_dict: unknown fields {sorted(unknown)}")
+        d = dict(d)
+        if d.get("max_step", 0.0) is None:
+            d["max_step"] = math.inf
+        if "sample_values" in d:
+            d["sample_values"] = tuple(d["sample_values"])
+        return cls(**d)
 
 
 # ================================================================== deflated Newton

@@ -125,15 +125,23 @@ class ContinuationSettings:
         return dataclasses.replace(self, **changes)
 
     def to_dict(self) -> dict:
-        return {
-            k: (v if not (isinstance(v, float) and math.isinf(v)) else repr(v))
-            for k, v in dataclasses.asdict(self).items()
-        }
+        """Plain JSON data: every field; an unbounded ``p_min`` / ``p_max`` (-inf / inf)
+        is ``None`` (JSON ``null``: no bound). :meth:`from_dict` reads it back."""
+        d = dataclasses.asdict(self)
+        for k in ("p_min", "p_max"):
+            if math.isinf(d[k]):
+                d[k] = None
+        return d
 
     @classmethod
     def from_dict(cls, d: dict) -> ContinuationSettings:
+        """The settings :meth:`to_dict` wrote (``p_min`` / ``p_max`` ``None``: unbounded)."""
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = set(d) - known
         if unknown:
             raise ValueError(f"ContinuationSettings.from_dict: unknown fields {sorted(unknown)}")
-        return cls(**{k: (float(v) if v in ("inf", "-inf") else v) for k, v in d.items()})
+        d = dict(d)
+        for k, inf in (("p_min", -math.inf), ("p_max", math.inf)):
+            if k in d and d[k] is None:
+                d[k] = inf
+        return cls(**d)

@@ -1,7 +1,11 @@
-"""Plain JSON for results: numpy scalars to Python, non-finite floats to strings.
+"""Plain JSON for results: numpy scalars to Python, non-finite floats to ``null``.
 
-JSON has no NaN or inf; writing them as the strings "nan", "inf" keeps every output file
-valid JSON that any reader parses, and says what the value was.
+JSON has no NaN or inf, and a number written as a string ("nan") is a trap for every
+reader. :func:`jsonable` writes every non-finite float as ``null``: for a quantity that
+could not be computed (NaN) it means *unknown*, and where the field's documentation says
+so an infinite bound (a range open at one end, a step limit that is off) reads *unlimited*.
+Loaders map ``null`` back to the documented value (e.g.
+:meth:`continuation.ContinuationSettings.from_dict`).
 """
 
 from __future__ import annotations
@@ -14,7 +18,9 @@ __all__ = ["jsonable"]
 
 
 def jsonable(obj):
-    """A copy of ``obj`` (dicts, lists, tuples, numbers) that ``json.dumps`` accepts."""
+    """A copy of ``obj`` (dicts, lists, tuples, numbers) that ``json.dumps(...,
+    allow_nan=False)`` accepts: numpy scalars and arrays as Python numbers and lists,
+    NaN and +-inf as ``None``."""
     if isinstance(obj, dict):
         return {str(k): jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
@@ -24,5 +30,5 @@ def jsonable(obj):
     if isinstance(obj, np.generic):
         obj = obj.item()
     if isinstance(obj, float) and not math.isfinite(obj):
-        return str(obj)
+        return None
     return obj

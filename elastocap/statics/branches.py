@@ -313,21 +313,10 @@ class BranchSet:
             bs.branches.append(Branch.load(path))
             bs.labels.append(line["label"])
         for key in ("folds", "branch_points", "maxwell_points", "admissibility_changes",
-                    "endpoints"):
-            setattr(bs, key, cls._numbers_back(data.get(key, [])))
+                    "endpoints", "unlocated"):
+            setattr(bs, key, data.get(key, []))
         bs.metadata = meta
         return bs
-
-    @staticmethod
-    def _numbers_back(obj):
-        """Undo :func:`elastocap.jsonutil.jsonable` on non-finite floats ("nan", "inf")."""
-        if isinstance(obj, dict):
-            return {k: BranchSet._numbers_back(v) for k, v in obj.items()}
-        if isinstance(obj, list):
-            return [BranchSet._numbers_back(v) for v in obj]
-        if isinstance(obj, str) and obj in ("nan", "inf", "-inf"):
-            return float(obj)
-        return obj
 
 
 def _settings(scene: Scene, lo: float, hi: float, span: float) -> ContinuationSettings:

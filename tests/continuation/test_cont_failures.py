@@ -93,6 +93,30 @@ def test_settings_validation_quotes_field_and_value():
         C.ContinuationSettings.from_dict({**d, "dsmax": 1})
 
 
+def test_settings_round_trip_through_standard_json():
+    """Unbounded ends and an undamped search are null in the JSON (no NaN/Infinity, no
+    strings) and load back as -inf / inf."""
+    import json
+    import math
+
+    def strict(text):
+        def refuse(name):
+            raise ValueError(name)
+        return json.loads(text, parse_constant=refuse)
+
+    for S in (C.ContinuationSettings(), C.ContinuationSettings(p_min=0.0),
+              C.ContinuationSettings(p_max=2.0)):
+        d = strict(json.dumps(S.to_dict(), allow_nan=False))
+        assert all(not isinstance(v, str) or k == "corrector" for k, v in d.items()), d
+        assert C.ContinuationSettings.from_dict(d) == S
+    d = strict(json.dumps(C.ContinuationSettings().to_dict()))
+    assert d["p_min"] is None and d["p_max"] is None
+    for T in (C.SearchSettings(), C.SearchSettings(max_step=math.inf, sample_values=(0.5,))):
+        d = strict(json.dumps(T.to_dict(), allow_nan=False))
+        assert C.SearchSettings.from_dict(d) == T
+    assert C.SearchSettings(max_step=math.inf).to_dict()["max_step"] is None
+
+
 def test_invalid_inputs_name_the_argument():
     with pytest.raises(ValueError, match="u0: expected a non-empty finite array"):
         C.continue_branch(Bratu(8), np.full(7, np.nan), 0.0, S)

@@ -114,16 +114,44 @@ def test_folds_cli_json_and_check(tmp_path, capsys):
 
 
 def test_branches_cli_writes_files(tmp_path, capsys):
+    import strict_json
+
+    from elastocap.jsonutil import jsonable
+    from elastocap.statics.branches import BranchSet
+
     assert main(["branches", "supp-fig5", "--out", str(tmp_path), "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
+    # every JSON written (stdout, branches.json, branch_K.json and the metadata inside
+    # each branch_K.npz) is standard JSON with numbers as numbers or null
+    out = strict_json.check(capsys.readouterr().out)
     files = [p for p in out["files"]]
     assert any(p.endswith("branches.png") for p in files)
+    written = sorted(tmp_path.glob("*.json")) + sorted(tmp_path.glob(".*.json"))
+    names = {p.name for p in written}
+    npz = sorted(tmp_path.glob("branch_*.npz"))
+    assert npz and {p.with_suffix(".json").name for p in npz} | {"branches.json"} <= names
+    for path in written:
+        strict_json.check(path.read_text())
+    for path in npz:
+        with np.load(path) as z:
+            strict_json.check(str(z["metadata_json"]))
     from continuation import Branch
 
     br = Branch.load(tmp_path / "branch_0.npz")
     assert br.metadata["scene"]["name"] == "supp-fig5"
     assert br.metadata["statics"]["N"] == 24
     assert "version" in br.metadata["statics"]
+    # loading round-trips: the special points as saved (a precision not estimated, null in
+    # the JSON, is NaN again)
+    saved = strict_json.loads((tmp_path / "branches.json").read_text())
+    back = BranchSet.load(tmp_path)
+    again = jsonable(back.summary())
+    for key in ("folds", "branch_points", "maxwell_points", "endpoints", "unlocated"):
+        assert again[key] == saved[key], key
+    for k, b in enumerate(back.branches):
+        a = Branch.load(tmp_path / f"branch_{k}.npz")
+        assert [(s.kind, s.p, s.located) for s in a.special_points] == \
+            [(s.kind, s.p, s.located) for s in b.special_points]
+        assert all(isinstance(s.precision, float) for s in b.special_points)
 
 
 def test_bad_range_exit_2(capsys):
