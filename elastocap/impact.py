@@ -480,10 +480,11 @@ class _Segments:
         elif j is not None:
             lt = locate_interface_touch(steps.positions[j - 1], steps.positions[j],
                                         steps.times[j - 1], steps.times[j], s_nodes, caps[j])
-            touch = {"time": lt.time, "time_error": 0.5 * (lt.time_bracket[1]
-                                                          - lt.time_bracket[0]),
-                     "step_bracket": [steps.times[j - 1], steps.times[j]], "s": lt.s,
-                     "s_spread": lt.s_spread}
+            lo, hi = float(steps.times[j - 1]), float(steps.times[j])
+            # the crossing shows between these two steps of the run: the bound on the error;
+            # the time inside the step is that of the linear interpolation of the nodes
+            touch = {"time": lt.time, "time_error": max(lt.time - lo, hi - lt.time),
+                     "step_bracket": [lo, hi], "s": lt.s, "s_spread": lt.s_spread}
         return _Window(steps, caps, j, touch)
 
 
@@ -800,7 +801,17 @@ def run_impact(scene: Scene, frames: int | None = None, **options) -> ImpactResu
     st["dt_retries"] = len(attempts) - 1
     if scene.drop.interface_contact == "ignore":
         best.touches = _locate_first_touch(scene, st, rod, best.sim, options)
+    best.touches = [_plain_touch(t) for t in best.touches]
     return _classify(scene, st, rod, best, attempts, scale, t0)
+
+
+def _plain_touch(t: dict) -> dict:
+    """A touch with Python floats (JSON-ready)."""
+    def plain(v):
+        if isinstance(v, list | tuple):
+            return [plain(u) for u in v]
+        return float(v) if isinstance(v, np.floating) else v
+    return {k: plain(v) for k, v in t.items()}
 
 
 def touch_note(touches: list, scale: float, most: int = 3) -> str:
@@ -808,8 +819,8 @@ def touch_note(touches: list, scale: float, most: int = 3) -> str:
     ``most`` and, for more, how many, the last and the capillary energy they released."""
     def one(t):
         where = {"s1": "beyond S1", "s2": "beyond S2", "wet": "on the wet part"}[t["side"]]
-        txt = (f"t = {t['time']:.6g} (step bracket {t['step_bracket'][0]:.6g} .. "
-               f"{t['step_bracket'][1]:.6g}) at S = {t['s']:.6g} ({where}, {t['kind']})")
+        txt = (f"t = {t['time']:.6g} +- {t['time_error']:.2g} at S = {t['s']:.6g} ({where}, "
+               f"{t['kind']})")
         if t["action"] == "wetted":
             return txt + (f": wetted, S1 = {t['s1']:.6g}, S2 = {t['s2']:.6g}, capillary "
                           f"energy {t['energy_jump'] / scale:+.3g} gamma Delta")
