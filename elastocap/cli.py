@@ -376,6 +376,12 @@ def cmd_impact(args) -> int:
             )
         for f in rep.get("files", []):
             print(f"  wrote {f}")
+    if res.interface_touches:  # the drop's interface met the rod (drop.interface_contact)
+        from elastocap.impact import touch_note
+
+        scale = scene.drop.line_tension * scene.drop.wetted_length
+        print(f"elastocap: warning: drop.interface_contact = {res.interface_contact}: "
+              + touch_note(res.interface_touches, scale), file=sys.stderr)
     if res.outcome == "undecided":
         print(f"elastocap: warning: outcome undecided: {res.undecided_reason}", file=sys.stderr)
     if res.outcome == "failed":  # a numerical failure: diagnosed, exit 1 (not bad input)

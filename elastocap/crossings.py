@@ -14,6 +14,7 @@ only on the segment pairs whose bounding boxes overlap.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -21,7 +22,13 @@ import numpy as np
 from elastocap.drop import capillary_energy_and_gradient, locate_on_rod
 from elastocap.geometry import segments_cross
 
-__all__ = ["INTERFACE_POINTS", "first_crossing_frames"]
+__all__ = [
+    "INTERFACE_POINTS",
+    "InterfaceTouch",
+    "first_crossing_frames",
+    "interface_crossings",
+    "locate_interface_touch",
+]
 
 #: Points on the drawn interface (its ends sit on the rod and are not tested).
 INTERFACE_POINTS = 80
@@ -99,10 +106,11 @@ def _segment_boxes(b, box, bbox):
 
 
 @numba.njit(cache=True)
-def _any_crossing(a, b, same, skip_a0, skip_a1, box, bbox):
-    """``count_crossings(a, b, same, skip_a0, skip_a1) > 0``
-    (:func:`elastocap.geometry.count_crossings`), stopping at the first crossing and
-    testing only the segment pairs whose bounding boxes overlap.
+def _crossing_pairs(a, b, same, skip_a0, skip_a1, box, bbox, out):
+    """The crossings of :func:`elastocap.geometry.count_crossings(a, b, same, skip_a0,
+    skip_a1) <elastocap.geometry.count_crossings>`, testing only the segment pairs whose
+    bounding boxes overlap: writes the pairs (segment of a, segment of b) into ``out``
+    (m, 2), stopping once it is full; returns how many it wrote.
 
     ``box`` and ``bbox`` hold the boxes of b's segments (:func:`_segment_boxes`).  A pair of
     segments with disjoint boxes cannot cross; the exact test on the others is the same
@@ -112,6 +120,7 @@ def _any_crossing(a, b, same, skip_a0, skip_a1, box, bbox):
     """
     mb = b.shape[0] - 1
     nb = (mb + _BLOCK - 1) // _BLOCK
+    m = 0
     for i in range(max(skip_a0, 0), min(a.shape[0] - 1, skip_a1)):
         ax, az = a[i, 0], a[i, 1]
         rx, rz = a[i + 1, 0] - ax, a[i + 1, 1] - az
@@ -130,8 +139,20 @@ def _any_crossing(a, b, same, skip_a0, skip_a1, box, bbox):
                 bx, bz = b[j, 0], b[j, 1]
                 if segments_cross(ax, az, rx, rz, bx, bz, b[j + 1, 0] - bx,
                                   b[j + 1, 1] - bz):
-                    return True
-    return False
+                    out[m, 0] = i
+                    out[m, 1] = j
+                    m += 1
+                    if m == out.shape[0]:
+                        return m
+    return m
+
+
+@numba.njit(cache=True)
+def _any_crossing(a, b, same, skip_a0, skip_a1, box, bbox):
+    """``count_crossings(a, b, same, skip_a0, skip_a1) > 0``, stopping at the first
+    crossing (:func:`_crossing_pairs`)."""
+    first = np.empty((1, 2), dtype=np.int64)
+    return _crossing_pairs(a, b, same, skip_a0, skip_a1, box, bbox, first) > 0
 
 
 @numba.njit(cache=True)
@@ -174,3 +195,117 @@ def first_crossing_frames(positions, s_nodes, cap_params):
             if _any_crossing(iface, pos, False, 1, INTERFACE_POINTS - 2, box, bbox):
                 k_if = k
     return k_rod, k_if
+
+
+#: Most crossings :func:`interface_crossings` lists on one frame.
+MAX_LISTED_CROSSINGS = 64
+
+
+@numba.njit(cache=True)
+def _interface_crossings(x, s_nodes, cap, out_s):
+    """Rod arclengths where the drawn interface crosses the rod (into ``out_s``); count."""
+    n = x.shape[0]
+    grad = np.zeros((n, 2))
+    iface = np.empty((INTERFACE_POINTS, 2))
+    box = np.empty((n - 1, 4))
+    bbox = np.empty(((n - 1 + _BLOCK - 1) // _BLOCK, 4))
+    pairs = np.empty((out_s.shape[0], 2), dtype=np.int64)
+    _segment_boxes(x, box, bbox)
+    _interface_points(x, s_nodes, cap[0], cap[1], cap[2], cap[3], grad, iface)
+    m = _crossing_pairs(iface, x, False, 1, INTERFACE_POINTS - 2, box, bbox, pairs)
+    for k in range(m):
+        i, j = pairs[k, 0], pairs[k, 1]
+        ax, az = iface[i, 0], iface[i, 1]
+        rx, rz = iface[i + 1, 0] - ax, iface[i + 1, 1] - az
+        sx, sz = x[j + 1, 0] - x[j, 0], x[j + 1, 1] - x[j, 1]
+        qx, qz = x[j, 0] - ax, x[j, 1] - az
+        # the rod parameter of segments_cross's test (same arithmetic)
+        u = (qx * rz - qz * rx) / (rx * sz - rz * sx)
+        out_s[k] = s_nodes[j] + u * (s_nodes[j + 1] - s_nodes[j])
+    return m
+
+
+def interface_crossings(x, s_nodes, cap) -> np.ndarray:
+    """Arclengths S of the rod points where the drop's interface crosses the rod.
+
+    The same test as :func:`first_crossing_frames` on one configuration: the interface
+    drawn with ``INTERFACE_POINTS`` points, its end segments (on the rod) not tested.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n_nodes, 2)
+    s_nodes : ndarray, shape (n_nodes,)
+    cap : array_like, shape (4,)
+        ``[area, S1, S2, gamma]``.
+
+    Returns
+    -------
+    ndarray
+        Sorted arclengths (at most MAX_LISTED_CROSSINGS), empty when there is no crossing.
+    """
+    out = np.empty(MAX_LISTED_CROSSINGS)
+    m = _interface_crossings(np.ascontiguousarray(x, dtype=np.float64),
+                             np.ascontiguousarray(s_nodes, dtype=np.float64),
+                             np.asarray(cap, dtype=np.float64), out)
+    return np.sort(out[:m])
+
+
+@dataclass(frozen=True)
+class InterfaceTouch:
+    """Where and when the drop's interface first touches the rod between two states.
+
+    Attributes
+    ----------
+    time : float
+        Touch time, located by bisection on the linear interpolation between the two
+        states (times ``t0`` < ``t1``).
+    time_bracket : tuple of float
+        (last time without a crossing, first time with one) of the bisection.
+    s : float
+        Arclength of the touched rod point: the mean of the crossings at the first
+        crossing time of the bisection (they enclose the touch point).
+    s_spread : float
+        Distance in arclength between the outermost crossings there.
+    """
+
+    time: float
+    time_bracket: tuple
+    s: float
+    s_spread: float
+
+
+#: Bisection steps of :func:`locate_interface_touch` (the bracket shrinks to 2^-40 of the
+#: interval: below round-off of the time for any step).
+TOUCH_BISECTIONS = 40
+
+
+def locate_interface_touch(x0, x1, t0, t1, s_nodes, cap) -> InterfaceTouch:
+    """Locate the first touch between a state without crossing and one with a crossing.
+
+    The configuration between the two is the linear interpolation of the node positions
+    (for two consecutive time steps its distance to the integrator's trajectory is
+    O(dt^2)); the touch is where :func:`interface_crossings` first finds a crossing.
+
+    Raises
+    ------
+    ValueError
+        When ``x0`` already has a crossing or ``x1`` has none.
+    """
+    x0 = np.asarray(x0, dtype=np.float64)
+    x1 = np.asarray(x1, dtype=np.float64)
+    if interface_crossings(x0, s_nodes, cap).size:
+        raise ValueError(f"locate_interface_touch: the interface already crosses at t = {t0}")
+    hit = interface_crossings(x1, s_nodes, cap)
+    if not hit.size:
+        raise ValueError(f"locate_interface_touch: no crossing at t = {t1}")
+    lo, hi = 0.0, 1.0
+    for _ in range(TOUCH_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        s = interface_crossings((1.0 - mid) * x0 + mid * x1, s_nodes, cap)
+        if s.size:
+            hi, hit = mid, s
+        else:
+            lo = mid
+    ta, tb = t0 + lo * (t1 - t0), t0 + hi * (t1 - t0)
+    return InterfaceTouch(0.5 * (ta + tb), (ta, tb), float(0.5 * (hit[0] + hit[-1])),
+                          float(hit[-1] - hit[0]))

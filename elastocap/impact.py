@@ -52,6 +52,7 @@ from dynamics import (
     Ground,
     RestCriterion,
     Rod,
+    SimulationResult,
     euler_bernoulli_omega,
     simulate,
     stable_dt,
@@ -59,7 +60,13 @@ from dynamics import (
 from elastocap._version import __version__
 from elastocap.capillary import Capillary
 from elastocap.criteria import frame_verdicts, impact_verdict
-from elastocap.crossings import first_crossing_frames
+from elastocap.crossings import (
+    INTERFACE_POINTS,
+    first_crossing_frames,
+    interface_crossings,
+    locate_interface_touch,
+)
+from elastocap.drop import capillary_energy_and_gradient
 from elastocap.geometry import turning_measures
 from elastocap.scene import Numerics, Scene, SceneError
 
@@ -155,6 +162,8 @@ class ImpactResult:
     compile_time_s: float
     run_time_s: float
     settings: dict
+    interface_contact: str = "ignore"
+    interface_touches: list = field(default_factory=list)
     simulation: object = field(repr=False, default=None)
     measure_history: np.ndarray = field(repr=False, default=None)
 
@@ -364,6 +373,373 @@ class _Attempt:
     effects: ImpactEffects
     rise: float
     t_rise: float
+    touches: list
+
+
+#: Most contact-line jumps of one run under ``interface_contact = "wet"``; a further touch
+#: is flagged and left (the interface then passes through the rod, as under "ignore").
+MAX_WET_JUMPS = 1000
+#: After a jump, "wet" runs on in pieces of this duration (a touch found in one costs a
+#: re-run of that piece, not of the rest of the run) until WET_QUIET_TIME has passed
+#: without a touch; then to t_max with the rest criterion.  Measured on supp-fig5 at
+#: Delta = 4 (173 jumps at 200 edges): runs to t_max after every jump cost 750 s.
+WET_CHUNK_TIME = 0.5
+WET_QUIET_TIME = 2.0
+
+
+def _frame_steps(frames, t_max: float, dt: float) -> np.ndarray:
+    """The steps of the output frames (those :func:`dynamics.simulate` records)."""
+    n_total = int(math.ceil(t_max / dt - 1e-9))
+    nf = frames or min(MAX_FRAMES, int(t_max / FRAME_SPACING) + 1)
+    steps = np.unique(np.rint(np.linspace(0.0, t_max, int(nf)) / dt).astype(np.int64))
+    return steps[(steps >= 0) & (steps <= n_total)]
+
+
+class _Segments:
+    """Runs of one impact from any step and state, with the capillary parameters in force
+    (the scene's events at their steps), on the global time grid ``k dt``."""
+
+    def __init__(self, scene: Scene, st: dict, dt: float, frame_steps, options):
+        self.scene, self.st, self.dt, self.options = scene, st, dt, options
+        self.frame_steps = frame_steps
+        self.n_total = int(math.ceil(st["t_max"] / dt - 1e-9))
+        self.eff = build_effects(scene)  # the scene's events, and the initial parameters
+        self.ev_steps = [int(math.ceil(e.time / dt - 1e-9)) for e in self.eff.events]
+        self.runs = []  # every simulate() call (cost accounting)
+
+    def run(self, rod, m0, m1, params, fresh, frames=None, rest=True):
+        """simulate() from step m0 (state ``rod``, capillary ``params``) to step m1.
+
+        Frames at the global frame steps in [m0, m1] (or at the relative steps
+        ``frames``); the scene's events at steps > m0 (>= m0 when ``fresh``) up to m1.
+        Returns the result and the capillary parameters at m1 (events applied)."""
+        dt = self.dt
+        eff = build_effects(self.scene)
+        eff.capillary.params[:] = params
+        events = [
+            Event((k - m0) * dt, e.effect, e.param, e.value)
+            for e, k in zip(self.eff.events, self.ev_steps, strict=True)
+            if (k >= m0 if fresh else k > m0) and k <= m1
+        ]
+        if frames is None:
+            f = self.frame_steps
+            frames = np.concatenate([[0], f[(f > m0) & (f <= m1)] - m0])
+        sim = simulate(
+            rod, eff.effects, method=self.st["method"], dt=dt, t_end=(m1 - m0) * dt,
+            frames=np.asarray(frames, dtype=np.float64) * dt, events=events,
+            rest=RestCriterion(self.st["rest_kinetic"], self.st["rest_time"]) if rest else None,
+            t0=m0 * dt, **self.options,
+        )
+        self.runs.append(sim)
+        return sim, eff.capillary.params.copy()
+
+    def cap_frames(self, sim, params0) -> np.ndarray:
+        """Capillary parameters at each frame of a run that started with ``params0``."""
+        frames = np.repeat(np.asarray(params0, float)[None], len(sim.times), axis=0)
+        for t_ev, _name, j, val in sim.events_fired:
+            frames[sim.times >= t_ev - 1e-12, j] = val
+        return frames
+
+    def locate(self, rod, m0, params, fresh, k_frame, sim, s_nodes) -> _Located:
+        """The first touch in the frame interval (k_frame - 1, k_frame] of ``sim`` (a run
+        from step m0, state ``rod``, with ``params``): re-run to frame k_frame - 1, then
+        step by step to frame k_frame, then bisection inside the first step with a
+        crossing (:func:`elastocap.crossings.locate_interface_touch`)."""
+        dt = self.dt
+        ma = int(round(sim.times[k_frame - 1] / dt))
+        mb = int(round(sim.times[k_frame] / dt))
+        if ma == m0:
+            head, state_a = sim, rod
+            pa = self.cap_frames(sim, params)[k_frame - 1]
+        else:
+            head, pa = self.run(rod, m0, ma, params, fresh, rest=False)
+            state_a = _rod_at(rod, head.positions[-1], head.velocities)
+        win = self.window(state_a, ma, mb, pa, s_nodes)
+        if win.j is None:
+            # the step run does not reproduce the crossing (round-off at a grazing touch):
+            # the touch is known to the frame interval only
+            j = mb - ma
+            xs = interface_crossings(sim.positions[k_frame], s_nodes,
+                                     self.cap_frames(sim, params)[k_frame])
+            win.touch = {"time": 0.5 * (ma + mb) * dt, "time_error": 0.5 * (mb - ma) * dt,
+                         "step_bracket": [ma * dt, mb * dt], "s": float(0.5 * (xs[0] + xs[-1])),
+                         "s_spread": float(xs[-1] - xs[0])}
+        else:
+            j = win.j
+        x_j = win.run.positions[j] if win.j is not None else sim.positions[k_frame]
+        return _Located(win.touch, head, state_a, ma, pa, j, win.caps[j], x_j)
+
+    def window(self, state, ma, mb, params, s_nodes) -> _Window:
+        """A run from step ma to mb with a frame at every step; the first step with a
+        crossing (None without) and the touch located inside the step before it."""
+        dt = self.dt
+        steps, _ = self.run(state, ma, mb, params, False, frames=np.arange(mb - ma + 1),
+                            rest=False)
+        caps = self.cap_frames(steps, params)
+        j = next((j for j in range(steps.positions.shape[0])
+                  if interface_crossings(steps.positions[j], s_nodes, caps[j]).size), None)
+        touch = None
+        if j == 0:  # already crossing where the run starts (after a jump, on the wet part)
+            xs = interface_crossings(steps.positions[0], s_nodes, caps[0])
+            touch = {"time": ma * dt, "time_error": 0.0, "step_bracket": [ma * dt, ma * dt],
+                     "s": float(0.5 * (xs[0] + xs[-1])), "s_spread": float(xs[-1] - xs[0])}
+        elif j is not None:
+            lt = locate_interface_touch(steps.positions[j - 1], steps.positions[j],
+                                        steps.times[j - 1], steps.times[j], s_nodes, caps[j])
+            lo, hi = float(steps.times[j - 1]), float(steps.times[j])
+            # the crossing shows between these two steps of the run: the bound on the error;
+            # the time inside the step is that of the linear interpolation of the nodes
+            touch = {"time": lt.time, "time_error": max(lt.time - lo, hi - lt.time),
+                     "step_bracket": [lo, hi], "s": lt.s, "s_spread": lt.s_spread}
+        return _Window(steps, caps, j, touch)
+
+
+@dataclass
+class _Window:
+    run: object
+    caps: np.ndarray
+    j: int | None
+    touch: dict | None
+
+
+@dataclass
+class _Located:
+    touch: dict
+    head: object  # the run from the segment's start to step ma
+    state_a: Rod  # the state at step ma
+    ma: int
+    params_a: np.ndarray
+    j: int  # steps after ma to the first step with a crossing
+    cap_j: np.ndarray
+    x_j: np.ndarray  # the configuration there
+
+
+def _rod_at(rod: Rod, x, v) -> Rod:
+    return Rod(np.array(x), np.array(v), rod.edge_len.copy(), rod.mu, rod.B)
+
+
+def _side(s: float, s1: float, s2: float) -> str:
+    return "s1" if s < s1 else ("s2" if s > s2 else "wet")
+
+
+def _classify_touch(touch: dict, x, s_nodes, cap) -> None:
+    """Side of the touched point and its kind: "contact angle" when it lies within two
+    segments of the drawn interface (lambda / (INTERFACE_POINTS - 1)) of the contact line
+    on its side (the interface folds onto the dry rod there: the contact angle has reached
+    pi), else "separate" (another part of the rod meets the interface)."""
+    touch["side"] = side = _side(touch["s"], cap[1], cap[2])
+    lam = _cap_energy(x, s_nodes, cap) / cap[3]
+    near = 2.0 * lam / (INTERFACE_POINTS - 1)
+    line = cap[1] if side == "s1" else cap[2]
+    touch["kind"] = ("contact angle" if side != "wet" and abs(touch["s"] - line) <= near
+                     else "separate")
+
+
+def _cap_energy(x, s_nodes, params) -> float:
+    g = np.zeros_like(x)
+    e, _tau, _k = capillary_energy_and_gradient(np.ascontiguousarray(x), s_nodes, params[1],
+                                                params[2], params[0], params[3], g)
+    return float(e)
+
+
+def _simulate_drop(scene: Scene, st: dict, rod: Rod, dt: float, frames, options):
+    """One run of the impact under the scene's ``drop.interface_contact``.
+
+    "ignore": one :func:`dynamics.simulate` call (the touch is located afterwards, by
+    :func:`_locate_first_touch`).  "wet": runs from the start to t_max; at the first frame
+    where the interface crosses the rod, the touch is located (re-run to the frame before,
+    then step by step, then bisection inside the step); if the touched point lies outside
+    [S1, S2] the contact line on that side jumps to it at the first step where the
+    crossing shows (as a scheduled event fires at the first step at or after its time),
+    and the run restarts from that step's state; repeated until no touch is left.
+    Returns (SimulationResult, touches, ImpactEffects)."""
+    fsteps = _frame_steps(frames, st["t_max"], dt)
+    seg = _Segments(scene, st, dt, fsteps, options)
+    if scene.drop.interface_contact == "ignore":
+        eff = seg.eff
+        sim = simulate(
+            rod, eff.effects, method=st["method"], dt=dt, t_end=st["t_max"],
+            frames=frames or min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
+            events=eff.events, rest=RestCriterion(st["rest_kinetic"], st["rest_time"]),
+            **options,
+        )
+        return sim, [], eff
+    s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
+    name = seg.eff.capillary.name
+    params = seg.eff.capillary.params.copy()
+    state, m0, fresh, after_jump = rod, 0, True, False
+    quiet = math.inf  # time since the last jump
+    fset = set(fsteps.tolist())
+    keep = []  # (piece, first frame kept?) of the stitched trajectory
+    fired, touches = [], []
+    while True:
+        if after_jump:
+            # right after a jump the next touch often follows within steps (the contact line
+            # advancing while the contact angle exceeds pi): step by step to the next frame
+            later = fsteps[fsteps > m0]
+            mb = int(later[0]) if later.size else seg.n_total
+            win = seg.window(state, m0, mb, params, s_nodes)
+            if win.j is None:
+                if mb in fset:
+                    keep.append((_last_frame(win.run), True))
+                fired += win.run.events_fired
+                state = _rod_at(rod, win.run.positions[-1], win.run.velocities)
+                quiet += (mb - m0) * dt
+                m0, params, after_jump, last = mb, win.caps[-1], False, win.run
+                if m0 >= seg.n_total:
+                    break
+                continue
+            loc = _Located(win.touch, None, state, m0, params, win.j, win.caps[win.j],
+                           win.run.positions[win.j])
+        else:
+            m_end, rest = seg.n_total, True
+            if quiet < WET_QUIET_TIME:
+                # soon after a jump: short runs (a touch costs a re-run of one of them)
+                later = fsteps[fsteps >= m0 + math.ceil(WET_CHUNK_TIME / dt)]
+                m_end, rest = (int(later[0]) if later.size else seg.n_total), False
+            sim, p_end = seg.run(state, m0, m_end, params, fresh, rest=rest)
+            _k_rod, k_if = first_crossing_frames(sim.positions, s_nodes,
+                                                 seg.cap_frames(sim, params))
+            if k_if < 0:
+                keep.append((sim, fresh))
+                fired += sim.events_fired
+                last = sim
+                if m_end >= seg.n_total or sim.status != "completed":
+                    break
+                quiet += (m_end - m0) * dt
+                state = _rod_at(rod, sim.positions[-1], sim.velocities)
+                m0, params, fresh = m_end, p_end, False
+                continue
+            loc = seg.locate(state, m0, params, fresh, k_if, sim, s_nodes)
+            keep.append((_first_frames(loc.head, loc.ma), fresh))
+            fired += [e for e in loc.head.events_fired if e[0] <= (loc.ma + 0.5) * dt]
+        touch, ma, j = loc.touch, loc.ma, loc.j
+        _classify_touch(touch, loc.x_j, s_nodes, loc.cap_j)
+        if touch["side"] == "wet" or len(touches) >= MAX_WET_JUMPS or j == 0:
+            touch["action"] = ("flagged: the touched point is on the wet part" if
+                               touch["side"] == "wet" else
+                               "flagged: the interface crosses the rod at the restart"
+                               if j == 0 else f"flagged: more than {MAX_WET_JUMPS} jumps")
+            touches.append(touch)
+            # the rest of the run as under "ignore", from the state at ma
+            rest_run, _p = seg.run(loc.state_a, ma, seg.n_total, loc.params_a, False)
+            keep.append((rest_run, False))
+            fired += rest_run.events_fired
+            last = rest_run
+            break
+        # the state at the first step with a crossing, with its velocities
+        m_jump = ma + j
+        run_c, pc = seg.run(loc.state_a, ma, m_jump, loc.params_a, False, frames=[0, j],
+                            rest=False)
+        x_c = run_c.positions[-1]
+        params_c = pc
+        pc, done = _wet(x_c, s_nodes, pc, touch, m_jump * dt, MAX_WET_JUMPS - len(touches))
+        touches += done
+        fired += run_c.events_fired
+        if m_jump in fset:
+            keep.append((_last_frame(run_c), True))
+        fired += [(m_jump * dt, name, k, float(pc[k])) for k in (1, 2)
+                  if pc[k] != params_c[k]]
+        state, m0, fresh, params = _rod_at(rod, x_c, run_c.velocities), m_jump, False, pc
+        after_jump, last, quiet = True, run_c, 0.0
+        if m0 >= seg.n_total:
+            break
+    return _stitch(keep, fired, seg.runs, dt, last), touches, seg.eff
+
+
+def _wet(x, s_nodes, params, touch, t_jump, budget):
+    """The contact-line jumps at state ``x`` (time ``t_jump``) under "wet": first to the
+    located touch, then, while the new interface crosses the dry rod there, to the mean of
+    the crossings on that side (at most ``budget`` jumps).  Returns the new capillary
+    parameters and the touches (each with the capillary energy before and after)."""
+    out = []
+    p = np.array(params, dtype=np.float64)
+    while len(out) < budget:
+        k = 1 if touch["side"] == "s1" else 2
+        new = p.copy()
+        new[k] = touch["s"]
+        e0, e1 = _cap_energy(x, s_nodes, p), _cap_energy(x, s_nodes, new)
+        touch.update(action="wetted", jump_time=t_jump, s1=float(new[1]), s2=float(new[2]),
+                     capillary_energy_before=e0, capillary_energy_after=e1, energy_jump=e1 - e0)
+        out.append(touch)
+        p = new
+        xs = interface_crossings(x, s_nodes, p)
+        lo, hi = xs[xs < p[1]], xs[xs > p[2]]
+        if not (lo.size or hi.size):
+            return p, out
+        xs = lo if lo.size else hi
+        touch = {"time": t_jump, "time_error": 0.0, "step_bracket": [t_jump, t_jump],
+                 "s": float(xs.mean()), "s_spread": float(xs[-1] - xs[0]),
+                 "cause": "the interface after the previous jump crosses the rod"}
+        _classify_touch(touch, x, s_nodes, p)
+    if xs.size:
+        out.append({**touch, "action": f"flagged: more than {MAX_WET_JUMPS} jumps"})
+    return p, out
+
+
+def _first_frames(sim, m_last):
+    """The frames of ``sim`` up to step m_last (a view as a light result)."""
+    k = int(np.searchsorted(sim.times, (m_last + 0.5) * sim.dt))
+    return _Frames(sim.times[:k], sim.positions[:k],
+                   {key: v[:k] for key, v in sim.energies.items()})
+
+
+def _last_frame(sim):
+    return _Frames(sim.times[-1:], sim.positions[-1:],
+                   {key: v[-1:] for key, v in sim.energies.items()})
+
+
+@dataclass
+class _Frames:
+    times: np.ndarray
+    positions: np.ndarray
+    energies: dict
+
+
+def _stitch(keep, fired, runs, dt, last) -> SimulationResult:
+    """One SimulationResult from the kept pieces, ending in the final state of the run
+    ``last``; costs summed over every run made."""
+    times, pos, ens = [], [], {}
+    for piece, first in keep:
+        a = 0 if first else 1
+        times.append(piece.times[a:])
+        pos.append(piece.positions[a:])
+        for key, v in piece.energies.items():
+            ens.setdefault(key, []).append(v[a:])
+    stats = dict(last.stats)
+    for key in ("rejected_steps", "contact_rounds", "compile_time", "run_time"):
+        stats[key] = sum(r.stats[key] for r in runs)
+    for key in ("max_halvings", "iterations_max", "constraint_error"):
+        stats[key] = max(r.stats[key] for r in runs)
+    stats["steps"] = int(round(last.t_final / dt))
+    stats["runs"] = len(runs)
+    stats["steps_all_runs"] = int(sum(r.stats["steps"] for r in runs))
+    return SimulationResult(
+        times=np.concatenate(times), positions=np.concatenate(pos),
+        velocities=last.velocities, energies={k: np.concatenate(v) for k, v in ens.items()},
+        status=last.status, success=last.success, message=last.message, method=last.method,
+        t_final=last.t_final, dt=dt, stats=stats,
+        events_fired=sorted(fired, key=lambda e: e[0]))
+
+
+def _locate_first_touch(scene, st, rod, sim, options) -> list:
+    """Under "ignore": the first touch of a finished run (its time located by re-running
+    to the frame before the first crossing frame, then step by step, then bisection inside
+    the step), flagged; [] when the interface never crosses the rod."""
+    s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
+    seg = _Segments(scene, st, sim.dt, None, options)
+    params = seg.eff.capillary.params.copy()
+    caps = seg.cap_frames(sim, params)
+    _k, k_if = first_crossing_frames(sim.positions, s_nodes, caps)
+    if k_if < 0:
+        return []
+    seg.frame_steps = np.rint(sim.times / sim.dt).astype(np.int64)
+    loc = seg.locate(rod, 0, params, True, k_if, sim, s_nodes)
+    touch = loc.touch
+    _classify_touch(touch, loc.x_j, s_nodes, loc.cap_j)
+    touch["action"] = "flagged: the interface passes through the rod (interface_contact = ignore)"
+    touch["relocation_runs"] = len(seg.runs)
+    return [touch]
 
 
 def _run_attempts(scene: Scene, st: dict, rod: Rod, frames, options) -> list:
@@ -374,22 +750,11 @@ def _run_attempts(scene: Scene, st: dict, rod: Rod, frames, options) -> list:
     dt = st["dt"]
     attempts = []
     for _ in range(retries + 1):
-        eff = build_effects(scene)
-        sim = simulate(
-            rod,
-            eff.effects,
-            method=st["method"],
-            dt=dt,
-            t_end=st["t_max"],
-            frames=frames or min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
-            events=eff.events,
-            rest=RestCriterion(st["rest_kinetic"], st["rest_time"]),
-            **options,
-        )
+        sim, touches, eff = _simulate_drop(scene, st, rod, dt, frames, options)
         # events fire at the first step boundary at or after their time
         fired_at = [t for t, *_ in sim.events_fired]
         rise, t_rise = energy_rise(sim.times, sim.energies["total"], fired_at)
-        attempts.append(_Attempt(dt, sim, eff, rise, t_rise))
+        attempts.append(_Attempt(dt, sim, eff, rise, t_rise, touches))
         if sim.success and rise <= ENERGY_RISE_TOL * scale:
             break
         dt *= 0.5
@@ -452,7 +817,43 @@ def run_impact(scene: Scene, frames: int | None = None, **options) -> ImpactResu
     best = min(done, key=lambda a: a.rise) if done else attempts[-1]
     st["dt"] = best.dt
     st["dt_retries"] = len(attempts) - 1
+    if scene.drop.interface_contact == "ignore":
+        best.touches = _locate_first_touch(scene, st, rod, best.sim, options)
+    best.touches = [_plain_touch(t) for t in best.touches]
     return _classify(scene, st, rod, best, attempts, scale, t0)
+
+
+def _plain_touch(t: dict) -> dict:
+    """A touch with Python floats (JSON-ready)."""
+    def plain(v):
+        if isinstance(v, list | tuple):
+            return [plain(u) for u in v]
+        return float(v) if isinstance(v, np.floating) else v
+    return {k: plain(v) for k, v in t.items()}
+
+
+def touch_note(touches: list, scale: float, most: int = 3) -> str:
+    """The touches of the interface with the rod in words (empty without): the first
+    ``most`` and, for more, how many, the last and the capillary energy they released."""
+    def one(t):
+        where = {"s1": "beyond S1", "s2": "beyond S2", "wet": "on the wet part"}[t["side"]]
+        txt = (f"t = {t['time']:.6g} +- {t['time_error']:.2g} at S = {t['s']:.6g} ({where}, "
+               f"{t['kind']})")
+        if t["action"] == "wetted":
+            return txt + (f": wetted, S1 = {t['s1']:.6g}, S2 = {t['s2']:.6g}, capillary "
+                          f"energy {t['energy_jump'] / scale:+.3g} gamma Delta")
+        return txt + ": " + t["action"]
+
+    if not touches:
+        return ""
+    shown = [one(t) for t in touches[:most]]
+    if len(touches) > most:
+        jumps = [t for t in touches if t["action"] == "wetted"]
+        de = sum(t["energy_jump"] for t in jumps)
+        shown.append(f"... {len(touches)} touches in all ({len(jumps)} contact-line jumps, "
+                     f"capillary energy {de / scale:+.3g} gamma Delta in all), the last at "
+                     + one(touches[-1]))
+    return "The drop's interface touches the rod at " + "; ".join(shown) + "."
 
 
 def _classify(scene, st, rod, best, attempts, scale, t0) -> ImpactResult:
@@ -498,6 +899,8 @@ def _classify(scene, st, rod, best, attempts, scale, t0) -> ImpactResult:
         message += _closing_note(cap_frames[-1], s_nodes, final)
     if verdict.reason:
         message += f" Outcome undecided: {verdict.reason}."
+    if best.touches:
+        message += " " + touch_note(best.touches, scale)
     crossed = [t for t in (rod_t, if_t) if t is not None]
     decided_after = (bool(crossed) and verdict.decision_time is not None
                      and verdict.decision_time >= min(crossed))
@@ -527,6 +930,8 @@ def _classify(scene, st, rod, best, attempts, scale, t0) -> ImpactResult:
             "scene_digest": scene.digest(),
             "version": __version__,
         },
+        interface_contact=scene.drop.interface_contact,
+        interface_touches=best.touches,
         simulation=sim,
         measure_history=measures,
     )

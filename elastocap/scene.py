@@ -7,6 +7,9 @@ l_eg for the gravity ones), B, mu and gamma as given. Sections and keys::
     [drop]        area, wetted_length, line_tension = 1,
                   center (arclength of the drop centre from S = 0; default L/2)
                   or distance_from_end (the paper's x: centre at S = L - x)
+                  interface_contact = "ignore" | "wet" (when the drop's interface touches
+                  the dry rod: the paper's model lets it pass and flags it, or the liquid
+                  wets the touched point; docs/guide/interface-contact.md)
     [[drop.events]]  time, s1 and/or s2 (new contact arclengths: the secondary drop, Fig 5)
     [effects]     gravity = 0 (g; 0 = off), ground = false (frictionless z >= 0), damping = 0
     [spreading]   drop_radius, delta0, coefficient = 0.32 (lengths in scene units): converts
@@ -80,6 +83,7 @@ DROP_KEYS: dict[str, tuple[str, Any]] = {
     "center": ("real", None),
     "distance_from_end": ("real", None),
     "events": ("events", ()),
+    "interface_contact": ("str:ignore|wet", "ignore"),
 }
 EVENT_KEYS: dict[str, tuple[str, Any]] = {
     "time": ("nonneg", REQUIRED),
@@ -274,6 +278,10 @@ class Drop:
     center: float
     line_tension: float = 1.0
     events: tuple[DropEvent, ...] = ()
+    #: What happens when the interface touches the rod outside [S1, S2]: "ignore" (the
+    #: paper's model: it passes through, flagged) or "wet" (the contact line on that side
+    #: jumps to the touched point, the area kept).
+    interface_contact: str = "ignore"
 
     @property
     def s1(self) -> float:
@@ -365,9 +373,14 @@ class Scene:
         however the input was typed (``40`` or ``40.0``, a default written out or not)."""
         from dataclasses import asdict
 
+        drop = asdict(self.drop)
+        if drop["interface_contact"] == "ignore":
+            # the paper's model, the default: left out so that the digests of scenes that
+            # do not name the key (and of the results stored under them) are unchanged
+            del drop["interface_contact"]
         return {
             "rod": asdict(self.rod),
-            "drop": asdict(self.drop),
+            "drop": drop,
             "effects": asdict(self.effects),
             "numerics": asdict(self.numerics),
             "spreading": None if self.spreading is None else asdict(self.spreading),
@@ -433,6 +446,7 @@ class Scene:
                 "line_tension": self.drop.line_tension,
                 "center": self.drop.center,
                 "events": [vars(ev).copy() for ev in self.drop.events],
+                "interface_contact": self.drop.interface_contact,
             },
             "effects": vars(self.effects).copy(),
             "spreading": None if self.spreading is None else vars(self.spreading).copy(),
@@ -575,7 +589,8 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
                 f"drop.events[{i}]", vars(ev), f"needs s1 < s2 after the event (s1={n1}, s2={n2})"
             )
         s1, s2 = n1, n2
-    drop = Drop(dsec["area"], delta, center, dsec["line_tension"], events)
+    drop = Drop(dsec["area"], delta, center, dsec["line_tension"], events,
+                dsec["interface_contact"])
     effects = Effects(**_read_section(data_effects, "effects", EFFECTS_KEYS))
     nsec = _read_section(data.get("numerics", {}), "numerics", NUMERICS_KEYS)
     for k, (lo, hi, allowed) in NUMERICS_RANGES.items():
