@@ -390,6 +390,17 @@ def _p_reversed(pa, pb, dpa, dpb) -> bool:
             and abs(move) > 1e-12 * (1.0 + abs(pa)))
 
 
+def _fold_approach_step(ds, ds_used, dpa, dpb, ds_min) -> float:
+    """The next step length after a step of ``ds_used`` along which dp/ds went from
+    ``dpa`` to ``dpb`` (one sign, falling by more than half): at most twice the distance
+    to the zero of the linear extrapolation of dp/ds (one distance past it), and at least
+    ds_used / 20 (the step shrinks by at most 20 at a time)."""
+    if not (dpa * dpb > 0.0 and abs(dpb) < 0.5 * abs(dpa)):
+        return ds
+    to_zero = ds_used * abs(dpb) / (abs(dpa) - abs(dpb))
+    return max(min(ds, 2.0 * to_zero), ds_used / 20.0, ds_min)
+
+
 def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_first=False):
     s = core.s
     n = core.n
@@ -501,8 +512,14 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
             run.message = f"the branch closed on itself after {step} steps (an isola)."
             return run
         # ---- adapt the step: grow after easy convergence
+        ds_used = ds
         if res.iters <= s.newton_easy:
             ds = min(ds * s.step_grow, s.ds_max)
+        # ... and approach a fold: where dp/ds falls towards zero, the next step ends at
+        # most one predicted distance past the zero of its linear extrapolation, so that
+        # a fold (or the two folds of an S next to a cusp, which a longer step could
+        # cross at once) is bracketed step by step
+        ds = _fold_approach_step(ds, ds_used, t[n], t_new[n], s.ds_min)
         x, t = x_new, t_new
     run.status = B.MAX_STEPS
     run.message = (f"reached max_steps={s.max_steps} at p={x[n]:.10g}. Try increasing "
