@@ -125,8 +125,10 @@ def admissible_curve(problem, curve, q_param: str):
 
 def plot_bistability(scene: Scene, bs: BranchSet, curves, q_param: str, path=None):
     """Fold curves in (Delta, q) inside the admissible region, and shaded the region between
-    each curve and the admissible boundary (where the encapsulated state exists beside the
-    flat one). Returns the matplotlib Figure (no pyplot state is touched)."""
+    each curve and the admissible boundary: where two stable states coexist (for supp-fig5
+    the open and the encapsulated one; above the arc from the cusp to the curve's end on
+    Delta = L only the encapsulated state is stable, left of the curve only the open one). Returns
+    the matplotlib Figure (no pyplot state is touched)."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(6.4, 5.6), dpi=130)
@@ -150,7 +152,7 @@ def plot_bistability(scene: Scene, bs: BranchSet, curves, q_param: str, path=Non
         qb = np.linspace(q[-1], q[0], 64)
         db = np.array([boundary(v) for v in qb])
         ax.fill(np.concatenate([d, db]), np.concatenate([q, qb]), color="tab:green",
-                alpha=0.18, lw=0, label="the encapsulated state exists (beside the flat one)")
+                alpha=0.18, lw=0, label="two stable states coexist (bistable)")
         ax.plot(d, q, color="k", lw=1.6, label="fold curve")
         for qv, dv in extrema:
             ax.plot(dv, qv, "o", color="tab:red", ms=6,
