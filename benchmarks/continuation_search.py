@@ -2,11 +2,13 @@
 ``python3 benchmarks/continuation_search.py [--other /path/to/checkout] [--repeat 3]``).
 
 Each scene is traced in a fresh subprocess per code version, alternating versions, after
-one warm-up each (numba compiled and cached): median wall time of the whole diagram
-(search, every branch, folds with error estimates) and the number of branches and folds.
-Scenes: supp-fig5 and scenes of the property family (A 0.5..1.9, L 3..8, the drop off
-centre). Prints a table with the ratio this/other; ``--other`` defaults to /work/main.
-The search's own statistics (seeds tried, fold-curve starts) are printed for this version.
+one warm-up each (numba compiled and cached): median CPU time (``time.process_time`` of
+the tracing process: on a shared machine it is what the search costs, while the wall time
+also counts the other jobs) and median wall time of the whole diagram (search, every
+branch, folds with error estimates), and the number of branches and folds. Scenes:
+supp-fig5 and scenes of the property family (A 0.5..1.9, L 3..8, the drop off centre, one
+in the cusp region). Prints a table with the ratios this/other; ``--other`` defaults to
+/work/main. The search's own statistics (seeds tried) are printed for this version.
 """
 
 import argparse
@@ -25,6 +27,8 @@ SCENES = [
     ("A=1.74", {"drop.area": 1.74}),
     ("A=0.6 L=8 x=3", {"drop.area": 0.6, "rod.length": 8.0, "drop.distance_from_end": 3.0}),
     ("A=1.9 L=3", {"drop.area": 1.9, "rod.length": 3.0, "drop.wetted_length": 1.0}),
+    ("A=1.742 L=5.63 c=1.88", {"drop.area": 1.742, "rod.length": 5.63, "drop.center": 1.88,
+                               "drop.wetted_length": 1.0}),
 ]
 CHILD = r"""
 import json, sys, time
@@ -32,11 +36,11 @@ from elastocap.scene import load_scene
 from elastocap.statics.branches import trace_branches
 ov = json.loads(sys.argv[1])
 sc = load_scene("supp-fig5", ov)
-t = time.perf_counter()
+t, c = time.perf_counter(), time.process_time()
 bs = trace_branches(sc)
-dt = time.perf_counter() - t
+dt, dc = time.perf_counter() - t, time.process_time() - c
 st = bs.metadata.get("search", {}).get("stats", {})
-print(json.dumps({"t": dt, "branches": len(bs.branches), "folds": len(bs.folds),
+print(json.dumps({"t": dt, "cpu": dc, "branches": len(bs.branches), "folds": len(bs.folds),
                   "seeds": st.get("seeds_tried"),
                   "fold_curve_starts": bs.metadata.get("search", {}).get("fold_curve_starts")}))
 """
@@ -56,9 +60,9 @@ def main():
     args = ap.parse_args()
     other = Path(args.other)
     print(f"this: {HERE}\nother: {other}\n")
-    print("| scene | this [s] | other [s] | ratio | this branches/folds | other branches/folds "
-          "| seeds tried (this) |")
-    print("|---|---:|---:|---:|---|---|---:|")
+    print("| scene | this CPU [s] | other CPU [s] | CPU ratio | this wall [s] | other wall [s] "
+          "| wall ratio | this branches/folds | other branches/folds | seeds tried (this) |")
+    print("|---|---:|---:|---:|---:|---:|---:|---|---|---:|", flush=True)
     for name, ov in SCENES:
         run(HERE, ov), run(other, ov)  # warm-up (numba caches)
         a, b = [], []
@@ -67,8 +71,11 @@ def main():
             b.append(run(other, ov))
         ta = statistics.median(r["t"] for r in a)
         tb = statistics.median(r["t"] for r in b)
-        print(f"| {name} | {ta:.2f} | {tb:.2f} | {ta / tb:.2f} | {a[0]['branches']}/"
-              f"{a[0]['folds']} | {b[0]['branches']}/{b[0]['folds']} | {a[0]['seeds']} |")
+        ca = statistics.median(r["cpu"] for r in a)
+        cb = statistics.median(r.get("cpu", float("nan")) for r in b)
+        print(f"| {name} | {ca:.2f} | {cb:.2f} | {ca / cb:.2f} | {ta:.2f} | {tb:.2f} | "
+              f"{ta / tb:.2f} | {a[0]['branches']}/{a[0]['folds']} | "
+              f"{b[0]['branches']}/{b[0]['folds']} | {a[0]['seeds']} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -381,6 +381,26 @@ class _Run:
         self.ev_vals.append({k: float(g(x[:n], x[n])) for k, g in self.events.items()})
 
 
+def _p_reversed(pa, pb, dpa, dpb) -> bool:
+    """Whether a step from p = pa to pb moved against dp/ds at both of its ends (dpa and
+    dpb of one sign): p then turned twice inside the step, at two folds that the sign
+    test of dp/ds cannot see. Round-off-level moves (1e-12 relative) do not count."""
+    move = pb - pa
+    return (dpa * dpb > 0.0 and move * dpa < 0.0
+            and abs(move) > 1e-12 * (1.0 + abs(pa)))
+
+
+def _fold_approach_step(ds, ds_used, dpa, dpb, ds_min) -> float:
+    """The next step length after a step of ``ds_used`` along which dp/ds went from
+    ``dpa`` to ``dpb`` (one sign, falling by more than half): at most twice the distance
+    to the zero of the linear extrapolation of dp/ds (one distance past it), and at least
+    ds_used / 20 (the step shrinks by at most 20 at a time)."""
+    if not (dpa * dpb > 0.0 and abs(dpb) < 0.5 * abs(dpa)):
+        return ds
+    to_zero = ds_used * abs(dpb) / (abs(dpa) - abs(dpb))
+    return max(min(ds, 2.0 * to_zero), ds_used / 20.0, ds_min)
+
+
 def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_first=False):
     s = core.s
     n = core.n
@@ -413,6 +433,11 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
                         res.reason = (f"tangent turned by "
                                       f"{math.degrees(math.acos(min(1, core.dot(t_new, t)))):.1f}"
                                       f" deg > max_turn")
+                    elif _p_reversed(x[n], res.x[n], t[n], t_new[n]):
+                        # p moved against dp/ds at both ends: an even number of folds
+                        # inside the step (an S near a cusp), invisible to the sign test
+                        res.ok = False
+                        res.reason = "p reversed within the step (two folds inside it)"
             if res.ok:
                 break
             last_reason = res.reason
@@ -487,8 +512,14 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
             run.message = f"the branch closed on itself after {step} steps (an isola)."
             return run
         # ---- adapt the step: grow after easy convergence
+        ds_used = ds
         if res.iters <= s.newton_easy:
             ds = min(ds * s.step_grow, s.ds_max)
+        # ... and approach a fold: where dp/ds falls towards zero, the next step ends at
+        # most one predicted distance past the zero of its linear extrapolation, so that
+        # a fold (or the two folds of an S next to a cusp, which a longer step could
+        # cross at once) is bracketed step by step
+        ds = _fold_approach_step(ds, ds_used, t[n], t_new[n], s.ds_min)
         x, t = x_new, t_new
     run.status = B.MAX_STEPS
     run.message = (f"reached max_steps={s.max_steps} at p={x[n]:.10g}. Try increasing "
@@ -547,6 +578,65 @@ def _bisect_on_arc(core, run, k, func, fa, fb):
 
 class _LocateError(Exception):
     pass
+
+
+#: Offsets (in units of h) of the points through which :func:`_polish_on_arc` interpolates.
+_POLISH_OFFSETS = np.array([-3.0, -2.0, -1.0, 1.0, 2.0, 3.0])
+#: ... and h as a fraction of the bracketing step's arclength.
+_POLISH_H = 5e-3
+
+
+def _polish_on_arc(core, run, k, func, xr, prec):
+    """Refine a root ``xr`` of a smooth test function (the branch-point test ``tau``) found
+    by :func:`_bisect_on_arc`.
+
+    At a branch point the corrector's bordered matrix is singular, so the points Brent
+    evaluates next to the root are corrected only to the residual's round-off floor there
+    (a few newton_tol; the point drifts along the kernel), and the root they give is off
+    by ~1e-10 in p on the elastica. Here ``func`` and the point are instead interpolated
+    (degree 5) through six points at arclength offsets of +-1, 2, 3 h from the root, with
+    h = 5e-3 of the step: far enough that the corrector is well conditioned, near enough
+    that the interpolation error (~h^6) is below round-off. Returns ``(x, precision)``,
+    the precision being the difference in p from the root of the cubic through the four
+    inner points (an estimate of the interpolation error); or the input when a point
+    fails or the interpolated root is not unique.
+    """
+    xa = np.concatenate([run.u[k - 1], [run.p[k - 1]]])
+    ta = run.t[k - 1]
+    sb = core.dot(np.concatenate([run.u[k], [run.p[k]]]) - xa, ta)
+    s0 = core.dot(xr - xa, ta)
+    h = _POLISH_H * abs(sb)
+    if not h > 0.0:
+        return xr, prec
+    ss = s0 + h * _POLISH_OFFSETS
+    xs, fs = [], []
+    for sv in ss:
+        r = _point_at(core, xa, ta, sv)
+        if not r.ok:
+            return xr, prec
+        xs.append(r.x)
+        fs.append(func(r.x))
+    fs = np.array(fs)
+    if not (np.all(np.isfinite(fs)) and fs[2] * fs[3] < 0):
+        return xr, prec
+    xs = np.array(xs)
+
+    def interpolated_root(t, f, x):
+        roots = np.roots(np.polyfit(t, f, len(t) - 1))
+        roots = roots[(np.abs(roots.imag) < 1e-9) & (np.abs(roots.real) <= 1.0)].real
+        if roots.size != 1:
+            return None
+        w = float(roots[0])
+        # Lagrange weights of the point at offset w (the same interpolation)
+        lw = np.array([np.prod([(w - t[m]) / (t[j] - t[m]) for m in range(len(t)) if m != j])
+                       for j in range(len(t))])
+        return lw @ x
+
+    x = interpolated_root(_POLISH_OFFSETS, fs, xs)
+    x3 = interpolated_root(_POLISH_OFFSETS[1:-1], fs[1:-1], xs[1:-1])
+    if x is None or x3 is None:
+        return xr, prec
+    return x, max(abs(float(x[-1] - x3[-1])), 4 * np.finfo(float).eps * (1 + abs(x[-1])))
 
 
 #: Slack of the bracket check of a located fold, relative to (1 + |p|): the fold's Newton
@@ -635,6 +725,8 @@ def _detect(core, run, k, skip_first=False):
                 fa, fb = tau(xa), tau(xb)
                 if fa * fb < 0:
                     xr, prec = _bisect_on_arc(core, run, k, tau, fa, fb)
+                    if xr is not None:
+                        xr, prec = _polish_on_arc(core, run, k, tau, xr, prec)
             if xr is None:
                 # Fallback: bisection on the sign of det A (always brackets).
                 def dets(x):

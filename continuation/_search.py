@@ -44,18 +44,21 @@ supplied start (for example it carries a fold that a fold curve in a second para
 crosses). The range ends are samples, so a branch that reaches either end is subject to
 (a) there; the neighbour seeds make the search independent of how well the problem's own
 seeds fit one particular parameter value, since a solution found at one sample is tried,
-deflated, at the next. At the fixed point of step 5 every known solution at every sample
-has been used as a deflated seed at its neighbours and every branch point has been
-switched.
+deflated, at the next. Along a found branch no fold is stepped over: the continuation
+shortens its steps where dp/ds falls towards zero and rejects a step whose p moves
+against dp/ds at both ends (the two folds of an S next to a cusp inside one step). At
+the fixed point of step 5 every known solution at every sample has been used as a
+deflated seed at its neighbours and every branch point has been switched.
 
 What it can still miss: an *isola* (a closed branch) or a branch segment that lies
 entirely between two consecutive samples, is outside every seed's deflated basin, is not
 connected through a simple branch point to a found branch, and contains no supplied start;
-and branches connected to the found ones only through degenerate (non-simple) branch
-points, where switching is not attempted. Add samples (``samples``, ``sample_values``),
-seeds or starts (a point of a fold curve) to close such gaps; a search whose result does
-not change when they are doubled is complete for the problem's solution set up to that
-resolution.
+branches connected to the found ones only through degenerate (non-simple) branch
+points, where switching is not attempted; and two folds inside one step whose p moves
+with dp/ds at both ends (the step overshoots the whole S). Add samples (``samples``,
+``sample_values``), seeds or starts (a point of a fold curve), or lower ``ds_max``, to
+close such gaps; a search whose result does not change when they are doubled is complete
+for the problem's solution set up to that resolution.
 """
 
 from __future__ import annotations

@@ -93,6 +93,8 @@ def test_bistability_curve_passes_through_the_fold(figs):
     k = int(np.argmax(a))
     assert np.interp(1.5, a[: k + 1], d[: k + 1]) == pytest.approx(3.4698, abs=2e-3)
     assert max(a) == pytest.approx(1.7449, abs=2e-3)  # the cusp
+    # inside the admissible region Delta <= L = 4.6, ending on its boundary
+    assert max(d) <= 4.6 * (1 + 1e-12) and d[-1] == pytest.approx(4.6, abs=1e-9)
 
 
 def test_supp_fig5_outcomes(figs):

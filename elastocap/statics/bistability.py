@@ -19,7 +19,7 @@ from elastocap.scene import Scene, SceneError
 from elastocap.statics.branches import BranchSet, problem_for, trace_branches
 from elastocap.statics.wet_elastica import PARAMETERS
 
-__all__ = ["fold_curve_report", "fold_curves", "plot_bistability"]
+__all__ = ["admissible_curve", "fold_curve_report", "fold_curves", "plot_bistability"]
 
 
 def fold_curves(
@@ -82,46 +82,105 @@ def fold_curves(
     return bs, curves
 
 
+def _admissible(problem, q_param: str, q: float, delta: float, rtol: float = 1e-12) -> bool:
+    """Whether the wet interval of length ``delta`` lies on the rod at ``q_param = q``."""
+    prm = problem.with_(**{q_param: float(q)}).params
+    return delta <= 2.0 * min(prm["center"], prm["L"] - prm["center"]) * (1 + rtol)
+
+
+def admissible_curve(problem, curve, q_param: str):
+    """The points of a fold curve (from :func:`fold_curves`) inside the admissible region,
+    ending exactly on the located boundary crossing where the curve leaves it.
+
+    The continuation stops one step past the boundary (on the step where the event changes
+    sign); that point is dropped and the located crossing put in its place.
+
+    Returns
+    -------
+    (q, delta, extrema)
+        Arrays of the curve parameter and of Delta, and the ``(q, Delta)`` of each located
+        extremum of q (a cusp) inside the region.
+    """
+    q, d = curve.p, curve.observables["p"]
+    inside = [_admissible(problem, q_param, qv, dv) for qv, dv in zip(q, d, strict=True)]
+    ends = [sp for sp in curve.points("event")
+            if sp.name == "admissible_boundary" and sp.located and sp.u is not None]
+    qs, ds = [], []
+    for i in range(len(q)):
+        if i > 0 and inside[i] != inside[i - 1]:
+            lo, hi = sorted((float(q[i - 1]), float(q[i])))
+            cross = [sp for sp in ends if sp.index in (i - 1, i)
+                     and lo - 1e-12 * (1 + abs(lo)) <= sp.p <= hi + 1e-12 * (1 + abs(hi))]
+            if cross:
+                qs.append(float(cross[0].p))
+                ds.append(float(cross[0].u[-1]))
+        if inside[i]:
+            qs.append(float(q[i]))
+            ds.append(float(d[i]))
+    extrema = [(float(sp.p), float(sp.u[-1])) for sp in curve.folds
+               if sp.located and sp.u is not None
+               and _admissible(problem, q_param, sp.p, float(sp.u[-1]))]
+    return np.array(qs), np.array(ds), extrema
+
+
 def plot_bistability(scene: Scene, bs: BranchSet, curves, q_param: str, path=None):
-    """Fold curves in (Delta, q), the region where two stable states coexist shaded."""
-    import matplotlib
+    """Fold curves in (Delta, q) inside the admissible region, and shaded the region between
+    each curve and the admissible boundary: where two stable states coexist (for supp-fig5
+    the open and the encapsulated one; above the arc from the cusp to the curve's end on
+    Delta = L only the encapsulated state is stable, left of the curve only the open one). Returns
+    the matplotlib Figure (no pyplot state is touched)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    fig = Figure(figsize=(6.4, 5.6), dpi=130)
+    ax = fig.add_subplot()
+    P = bs.problem
+    q_name = {"drop.area": "drop area $A$"}.get(q_param, q_param)
+    sym = {"drop.area": "A"}.get(q_param, q_param)
 
-    fig, ax = plt.subplots(figsize=(6.4, 4.8), dpi=130)
-    L = scene.rod.length
+    def boundary(q):
+        prm = P.with_(**{q_param: float(q)}).params
+        return 2.0 * min(prm["center"], prm["L"] - prm["center"])
+
+    q_all = []
     for fc in curves:
-        d = fc.observables["p"]
-        q = fc.p
-        ax.fill(
-            d,
-            q,
-            color="tab:green",
-            alpha=0.18,
-            lw=0,
-            label="between the folds: the encapsulated state exists",
-        )
+        q, d, extrema = admissible_curve(P, fc, q_param)
+        if len(q) < 2:
+            continue
+        q_all += [q.min(), q.max()]
+        # the region right of the curve up to the admissible boundary: the curve, then back
+        # along the boundary from its last q to its first, then to its first point
+        qb = np.linspace(q[-1], q[0], 64)
+        db = np.array([boundary(v) for v in qb])
+        ax.fill(np.concatenate([d, db]), np.concatenate([q, qb]), color="tab:green",
+                alpha=0.18, lw=0, label="two stable states coexist (bistable)")
         ax.plot(d, q, color="k", lw=1.6, label="fold curve")
-        for sp in fc.special_points:
-            if sp.kind == "fold" and sp.located:  # an extremum of q on the curve: a cusp
-                dv = sp.u[-1] if sp.u is not None else np.nan
-                ax.plot(dv, sp.p, "o", color="tab:red", ms=6, label=f"extremum of {q_param}")
-    ax.axvline(L, color="0.4", ls="--", lw=1, label=f"Δ = L = {L:g}")
-    q0 = bs.problem.get(q_param)
-    ax.axhline(q0, color="tab:blue", ls=":", lw=1, label=f"scene: {q_param} = {q0:g}")
+        for qv, dv in extrema:
+            ax.plot(dv, qv, "o", color="tab:red", ms=6,
+                    label=f"extremum of ${sym}$ on the curve: two folds meet")
+    q0 = P.get(q_param)
+    lo, hi = (min(q_all + [q0]), max(q_all + [q0]))
+    qb = np.linspace(lo, hi, 64)
+    L = scene.rod.length
+    ax.plot([boundary(v) for v in qb], qb, color="0.4", ls="--", lw=1,
+            label=("admissible boundary: the wet interval reaches a rod end"
+                   + (f" ($\\Delta = L = {L:g}$)" if all(abs(boundary(v) - L) < 1e-12 * L
+                                                       for v in qb) else "")))
+    ax.axhline(q0, color="tab:blue", ls=":", lw=1, label=f"the scene: ${sym} = {q0:g}$")
     for f in bs.folds:
         ax.plot(f["value"], q0, "X", color="k", ms=7,
-                label="✕ fold of the scene (one-parameter search)")
+                label="fold of the scene (one-parameter search)")
     # beyond Delta = L there is no rod to wet
     ax.set_xlim(0, 1.02 * L)
     ax.set_xlabel(r"wetted length $\Delta$")
-    ax.set_ylabel({"drop.area": "drop area A"}.get(q_param, q_param))
+    ax.set_ylabel(q_name)
     ax.set_title(f"{scene.name}: bistability map (folds continued in {q_param})", fontsize=9)
     handles, labels = ax.get_legend_handles_labels()
     uniq = dict(zip(labels, handles, strict=True))
-    ax.legend(uniq.values(), uniq.keys(), fontsize=7, loc="upper left")
+    # below the axes: the legend covers no curve
+    ax.legend(uniq.values(), uniq.keys(), fontsize=7, loc="upper center",
+              bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
     ax.grid(alpha=0.25)
+    fig.tight_layout()
     if path is not None:
         fig.savefig(path, bbox_inches="tight")
     return fig
@@ -203,12 +262,8 @@ def fold_curve_report(scene: Scene, q_param: str, q_range, *, ds_max: float = 0.
     cusps, unlocated, out_curves = [], [], []
     for k, fc in enumerate(curves):
         # the points inside the admissible region, ending on the located boundary crossing
-        qs, ds = [], []
-        for qv, dv in zip(fc.p, fc.observables["p"], strict=True):
-            prm = P.with_(**{q_param: float(qv)}).params
-            if dv <= 2.0 * min(prm["center"], prm["L"] - prm["center"]) * (1 + 1e-12):
-                qs.append(float(qv))
-                ds.append(float(dv))
+        qs, ds, _ = admissible_curve(P, fc, q_param)
+        qs, ds = qs.tolist(), ds.tolist()
         ends = [sp for sp in fc.points("event") if sp.name == "admissible_boundary"]
         out_curves.append({
             "points": len(qs),

@@ -115,7 +115,13 @@ def test_range_outside_the_admissible_region_is_bad_input():
         trace_branches(sc, "drop.wetted_length", (3.3, 4.0))
 
 
-def test_fold_curves_from_the_command_line_pin_the_cusp(tmp_path, capsys):
+def test_fold_curves_from_the_command_line_pin_the_cusp(tmp_path, capsys, monkeypatch):
+    from elastocap.statics import bistability
+
+    drawn = []
+    plot = bistability.plot_bistability
+    monkeypatch.setattr(bistability, "plot_bistability",
+                        lambda *a, **kw: drawn.append(plot(*a, **kw)) or drawn[-1])
     out = tmp_path / "fc"
     args = ["folds", "supp-fig5", "--curve", "drop.area", "1.2", "1.9", "--json"]
     assert main([*args, "--out", str(out)]) == 0
@@ -129,8 +135,20 @@ def test_fold_curves_from_the_command_line_pin_the_cusp(tmp_path, capsys):
     assert len(cusp) == 1 and cusp[0]["error_estimate"] < 1e-10
     # near the two folds of A = 1.74 (3.5408, 3.5421); the curve is tilted there
     assert abs(cusp[0]["drop.wetted_length"] - 3.541) < 2e-3
-    # every curve stays in the admissible region (Delta <= L = 4.6)
-    assert all(max(c["drop.wetted_length"]) <= 4.6 + 1e-9 for c in rep["curves"])
+    # every curve stays in the admissible region (Delta <= L = 4.6) and ends on it, in the
+    # JSON and in the map drawn
+    assert all(max(c["drop.wetted_length"]) <= 4.6 * (1 + 1e-12) for c in rep["curves"])
+    assert any(c["drop.wetted_length"][-1] == pytest.approx(4.6, abs=1e-9)
+               for c in rep["curves"])
+    (fig,) = drawn
+    (ax,) = fig.axes
+    lines = [ln for ln in ax.get_lines() if ln.get_label() == "fold curve"]
+    assert lines and all(max(ln.get_xdata()) <= 4.6 * (1 + 1e-12) for ln in lines)
+    # the legend explains every line and marker drawn
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert {ln.get_label() for ln in ax.get_lines()} <= set(legend), legend
+    assert any("fold of the scene" in t for t in legend)
+    assert any("two folds meet" in t for t in legend)
     ref = tmp_path / "ref.json"
     ref.write_text(json.dumps(rep))
     assert main(["folds", "supp-fig5", "--curve", "drop.area", "1.2", "1.9", "--check",
