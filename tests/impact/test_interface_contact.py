@@ -35,24 +35,25 @@ def _roof(z_roof):
     return x, len(flat) + len(wall)
 
 
-def test_locate_touch_of_a_roof_coming_down_closed_form():
+@pytest.mark.parametrize("area, above, below", [(0.6, 0.3, 0.1), (0.1, 0.05, 0.02),
+                                                (1.2, 0.7, 0.02), (0.35, 0.01, 0.01)])
+def test_locate_touch_of_a_roof_coming_down_closed_form(area, above, below):
     """A flat roof lowered onto the cap: the touch is where the roof reaches the top of the
     drawn interface (its top segment, at v = +-1/(K-1) of the arc, in closed form)."""
-    area = 0.6
     tau, s_tau, _c, _lam, _k = cap_geometry(area, 2.0)
     k = INTERFACE_POINTS
     v = 1.0 / (k - 1)  # the top segment of the drawn arc joins v = -1/(k-1) and +1/(k-1)
     top = (math.cos(tau * v) - math.cos(tau)) / s_tau  # times d/2 = 1
-    x_hi, i_roof = _roof(top + 0.3)
+    x_hi, i_roof = _roof(top + above)
     x_lo = x_hi.copy()
-    x_lo[i_roof:, 1] -= 0.4  # the roof only (the wall stretches: geometry only)
+    x_lo[i_roof:, 1] -= above + below  # the roof only (the wall stretches: geometry only)
     s_nodes = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(x_hi, axis=0).T))])
     cap = np.array([area, 0.0, 2.0, 1.0])
     assert interface_crossings(x_hi, s_nodes, cap).size == 0
     assert interface_crossings(x_lo, s_nodes, cap).size == 2
     t = locate_interface_touch(x_hi, x_lo, 10.0, 11.0, s_nodes, cap)
-    # the roof is at the top at theta = 0.3 / 0.4
-    assert t.time == pytest.approx(10.75, abs=1e-9)
+    # the roof is at the top at theta = above / (above + below)
+    assert t.time == pytest.approx(10.0 + above / (above + below), abs=1e-9)
     assert t.time_bracket[1] - t.time_bracket[0] < 1e-11
     # the touched point: above x = 1 (the apex), on the roof
     s_apex = s_nodes[i_roof] + 1.0
