@@ -231,3 +231,19 @@ def test_scene_file_key_and_summary(tmp_path):
                  'interface_contact = "Wet"\n')
     with pytest.raises(SceneError, match="drop.interface_contact: got 'Wet'"):
         load_scene(f)
+
+
+def test_wet_leaves_a_touch_of_the_wet_part_alone():
+    """The strip of Fig 3 at x = 2, Delta = 2: the interface first crosses the wet part
+    itself, next to S1 (t = 0.2466 at 120 edges), where there is nothing to wet: under
+    "wet" it is flagged and the run is the "ignore" run, bit for bit."""
+    ov = {"drop.wetted_length": 2.0, "effects.damping": 0.1, "numerics.t_max": 1.0,
+          "numerics.n_edges": 120}
+    a = run_impact(load_scene("fig3-strip", ov))
+    b = run_impact(load_scene("fig3-strip", {**ov, "drop.interface_contact": "wet"}))
+    ta, tb = a.interface_touches[0], b.interface_touches[0]
+    assert ta["side"] == tb["side"] == "wet"
+    assert tb["action"] == "flagged: the touched point is on the wet part"
+    assert ta["time"] == tb["time"] == pytest.approx(0.2466, abs=1e-3)
+    assert 11.3 < ta["s"] < 11.35  # S1 = 11.3
+    assert np.array_equal(a.simulation.positions, b.simulation.positions)
