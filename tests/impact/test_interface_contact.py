@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from dynamics import RestCriterion, simulate
+from dynamics import RestCriterion, Rod, simulate
 from elastocap.cli import main
 from elastocap.crossings import (
     INTERFACE_POINTS,
@@ -15,7 +15,13 @@ from elastocap.crossings import (
     locate_interface_touch,
 )
 from elastocap.drop import cap_geometry, capillary_energy_and_gradient
-from elastocap.impact import FRAME_SPACING, MAX_FRAMES, _initial_rod, build_effects, impact_settings, run_impact
+from elastocap.impact import (
+    FRAME_SPACING,
+    MAX_FRAMES,
+    build_effects,
+    impact_settings,
+    run_impact,
+)
 from elastocap.scene import SceneError, load_scene
 
 # supp-fig5 at Delta = 4: the interface first touches the rod at t = 5.752 (100 edges),
@@ -112,7 +118,11 @@ def test_ignore_is_the_paper_model_bit_for_bit(ignore_runs):
     assert scene.drop.interface_contact == "ignore"
     st = impact_settings(scene)
     eff = build_effects(scene)
-    ref = simulate(_initial_rod(scene, st["n_edges"]), eff.effects, method=st["method"],
+    n = st["n_edges"]
+    x0 = np.zeros((n + 1, 2))
+    x0[:, 0] = np.linspace(0.0, 4.6, n + 1)
+    rod = Rod(x0, np.zeros_like(x0), np.full(n, 4.6 / n), 1.0, 1.0)  # straight, at rest
+    ref = simulate(rod, eff.effects, method=st["method"],
                    dt=st["dt"], t_end=st["t_max"],
                    frames=min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
                    events=eff.events,
