@@ -31,7 +31,13 @@ Outcome
 
 What the model leaves out is flagged: the first time the rod crosses itself and the first
 time the drop's interface crosses the rod (checked at every output frame) are reported,
-and ``decided_after_crossing`` marks a verdict that settled after either.  Scenes the run
+and ``decided_after_crossing`` marks a verdict that settled after either.  The first touch
+of the interface with the rod is located inside a time step (``interface_touches``: time,
+its error bound, arclength, side, kind); ``drop.interface_contact`` says what follows:
+"ignore" (the paper's model, the default: the same run, flagged) or "wet" (the contact line
+on the touched side jumps to the touched point at the first step where the crossing shows,
+the area kept, and the run restarts from that step's state; each jump reports the capillary
+energy before and after; docs/guide/interface-contact.md).  Scenes the run
 cannot represent (fewer than MIN_WET_EDGES edges across the wet interval, a time step
 that is not finite, too long for the rest criterion or too short to reach t_max) are
 refused before it starts.
