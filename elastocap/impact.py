@@ -31,7 +31,13 @@ Outcome
 
 What the model leaves out is flagged: the first time the rod crosses itself and the first
 time the drop's interface crosses the rod (checked at every output frame) are reported,
-and ``decided_after_crossing`` marks a verdict that settled after either.  Scenes the run
+and ``decided_after_crossing`` marks a verdict that settled after either.  The first touch
+of the interface with the rod is located inside a time step (``interface_touches``: time,
+its error bound, arclength, side, kind); ``drop.interface_contact`` says what follows:
+"ignore" (the paper's model, the default: the same run, flagged) or "wet" (the contact line
+on the touched side jumps to the touched point at the first step where the crossing shows,
+the area kept, and the run restarts from that step's state; each jump reports the capillary
+energy before and after; docs/guide/interface-contact.md).  Scenes the run
 cannot represent (fewer than MIN_WET_EDGES edges across the wet interval, a time step
 that is not finite, too long for the rest criterion or too short to reach t_max) are
 refused before it starts.
@@ -591,6 +597,7 @@ def _simulate_drop(scene: Scene, st: dict, rod: Rod, dt: float, frames, options)
                 continue
             loc = _Located(win.touch, None, state, m0, params, win.j, win.caps[win.j],
                            win.run.positions[win.j])
+            whole, head = None, []
         else:
             m_end, rest = seg.n_total, True
             if quiet < WET_QUIET_TIME:
@@ -611,8 +618,10 @@ def _simulate_drop(scene: Scene, st: dict, rod: Rod, dt: float, frames, options)
                 m0, params, fresh = m_end, p_end, False
                 continue
             loc = seg.locate(state, m0, params, fresh, k_if, sim, s_nodes)
-            keep.append((_first_frames(loc.head, loc.ma), fresh))
-            fired += [e for e in loc.head.events_fired if e[0] <= (loc.ma + 0.5) * dt]
+            whole = (sim, fresh) if m_end >= seg.n_total else None
+            # the kept frames and events up to the frame before the crossing frame
+            head = [(_first_frames(loc.head, loc.ma), fresh),
+                    [e for e in loc.head.events_fired if e[0] <= (loc.ma + 0.5) * dt]]
         touch, ma, j = loc.touch, loc.ma, loc.j
         _classify_touch(touch, loc.x_j, s_nodes, loc.cap_j)
         if touch["side"] == "wet" or len(touches) >= MAX_WET_JUMPS or j == 0:
@@ -621,12 +630,24 @@ def _simulate_drop(scene: Scene, st: dict, rod: Rod, dt: float, frames, options)
                                "flagged: the interface crosses the rod at the restart"
                                if j == 0 else f"flagged: more than {MAX_WET_JUMPS} jumps")
             touches.append(touch)
+            if whole is not None:
+                # the run to t_max that found it stands (as under "ignore")
+                keep.append(whole)
+                fired += whole[0].events_fired
+                last = whole[0]
+                break
+            if head:
+                keep.append(head[0])
+                fired += head[1]
             # the rest of the run as under "ignore", from the state at ma
             rest_run, _p = seg.run(loc.state_a, ma, seg.n_total, loc.params_a, False)
             keep.append((rest_run, False))
             fired += rest_run.events_fired
             last = rest_run
             break
+        if head:
+            keep.append(head[0])
+            fired += head[1]
         # the state at the first step with a crossing, with its velocities
         m_jump = ma + j
         run_c, pc = seg.run(loc.state_a, ma, m_jump, loc.params_a, False, frames=[0, j],

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from dynamics import RestCriterion, simulate
+from dynamics import RestCriterion, Rod, simulate
 from elastocap.cli import main
 from elastocap.crossings import (
     INTERFACE_POINTS,
@@ -15,7 +15,13 @@ from elastocap.crossings import (
     locate_interface_touch,
 )
 from elastocap.drop import cap_geometry, capillary_energy_and_gradient
-from elastocap.impact import FRAME_SPACING, MAX_FRAMES, _initial_rod, build_effects, impact_settings, run_impact
+from elastocap.impact import (
+    FRAME_SPACING,
+    MAX_FRAMES,
+    build_effects,
+    impact_settings,
+    run_impact,
+)
 from elastocap.scene import SceneError, load_scene
 
 # supp-fig5 at Delta = 4: the interface first touches the rod at t = 5.752 (100 edges),
@@ -35,24 +41,25 @@ def _roof(z_roof):
     return x, len(flat) + len(wall)
 
 
-def test_locate_touch_of_a_roof_coming_down_closed_form():
+@pytest.mark.parametrize("area, above, below", [(0.6, 0.3, 0.1), (0.1, 0.05, 0.02),
+                                                (1.2, 0.7, 0.02), (0.35, 0.01, 0.01)])
+def test_locate_touch_of_a_roof_coming_down_closed_form(area, above, below):
     """A flat roof lowered onto the cap: the touch is where the roof reaches the top of the
     drawn interface (its top segment, at v = +-1/(K-1) of the arc, in closed form)."""
-    area = 0.6
     tau, s_tau, _c, _lam, _k = cap_geometry(area, 2.0)
     k = INTERFACE_POINTS
     v = 1.0 / (k - 1)  # the top segment of the drawn arc joins v = -1/(k-1) and +1/(k-1)
     top = (math.cos(tau * v) - math.cos(tau)) / s_tau  # times d/2 = 1
-    x_hi, i_roof = _roof(top + 0.3)
+    x_hi, i_roof = _roof(top + above)
     x_lo = x_hi.copy()
-    x_lo[i_roof:, 1] -= 0.4  # the roof only (the wall stretches: geometry only)
+    x_lo[i_roof:, 1] -= above + below  # the roof only (the wall stretches: geometry only)
     s_nodes = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(x_hi, axis=0).T))])
     cap = np.array([area, 0.0, 2.0, 1.0])
     assert interface_crossings(x_hi, s_nodes, cap).size == 0
     assert interface_crossings(x_lo, s_nodes, cap).size == 2
     t = locate_interface_touch(x_hi, x_lo, 10.0, 11.0, s_nodes, cap)
-    # the roof is at the top at theta = 0.3 / 0.4
-    assert t.time == pytest.approx(10.75, abs=1e-9)
+    # the roof is at the top at theta = above / (above + below)
+    assert t.time == pytest.approx(10.0 + above / (above + below), abs=1e-9)
     assert t.time_bracket[1] - t.time_bracket[0] < 1e-11
     # the touched point: above x = 1 (the apex), on the roof
     s_apex = s_nodes[i_roof] + 1.0
@@ -85,8 +92,9 @@ def _same_up_to_mirror(s, s_ref, L):
 
 
 def test_touch_time_converges_in_dt_and_n(ignore_runs):
-    """Measured: t = 5.7521727 (dt), 5.7521730 (dt/2), 5.7449 (200 edges); S beyond S2 =
-    4.3 by 0.0084 (the first drawn segment of the interface), the same at both dt."""
+    """Measured: t = 5.7521727 (dt), 5.7521730 (dt/2); 5.7522, 5.7449, 5.7431 at 100, 200,
+    400 edges (second order: the differences shrink by 4.0); S beyond S2 = 4.3 by 0.0084
+    (the first drawn segment of the interface), the same at both dt."""
     L = 4.6
     a, b, c = (ignore_runs[k].interface_touches[0] for k in ("dt", "dt/2", "n200"))
     for t in (a, b, c):
@@ -96,7 +104,7 @@ def test_touch_time_converges_in_dt_and_n(ignore_runs):
     assert abs(a["time"] - b["time"]) < 1e-6  # the step is converged
     assert _same_up_to_mirror(b["s"], a["s"], L) < 1e-6
     assert abs(a["time"] - 5.7522) < 1e-3
-    # resolution: an O(h^2) shift (7.3e-3 from 100 to 200 edges)
+    # resolution: an O(h^2) shift (7.3e-3 from 100 to 200 edges, 1.8e-3 from 200 to 400)
     assert 1e-3 < abs(a["time"] - c["time"]) < 1.5e-2
     assert _same_up_to_mirror(c["s"], a["s"], L) < 1e-4
     # the located touch lies before the first frame that shows the crossing
@@ -111,7 +119,11 @@ def test_ignore_is_the_paper_model_bit_for_bit(ignore_runs):
     assert scene.drop.interface_contact == "ignore"
     st = impact_settings(scene)
     eff = build_effects(scene)
-    ref = simulate(_initial_rod(scene, st["n_edges"]), eff.effects, method=st["method"],
+    n = st["n_edges"]
+    x0 = np.zeros((n + 1, 2))
+    x0[:, 0] = np.linspace(0.0, 4.6, n + 1)
+    rod = Rod(x0, np.zeros_like(x0), np.full(n, 4.6 / n), 1.0, 1.0)  # straight, at rest
+    ref = simulate(rod, eff.effects, method=st["method"],
                    dt=st["dt"], t_end=st["t_max"],
                    frames=min(MAX_FRAMES, int(st["t_max"] / FRAME_SPACING) + 1),
                    events=eff.events,
@@ -230,3 +242,19 @@ def test_scene_file_key_and_summary(tmp_path):
                  'interface_contact = "Wet"\n')
     with pytest.raises(SceneError, match="drop.interface_contact: got 'Wet'"):
         load_scene(f)
+
+
+def test_wet_leaves_a_touch_of_the_wet_part_alone():
+    """The strip of Fig 3 at x = 2, Delta = 2: the interface first crosses the wet part
+    itself, next to S1 (t = 0.2466 at 120 edges), where there is nothing to wet: under
+    "wet" it is flagged and the run is the "ignore" run, bit for bit."""
+    ov = {"drop.wetted_length": 2.0, "effects.damping": 0.1, "numerics.t_max": 1.0,
+          "numerics.n_edges": 120}
+    a = run_impact(load_scene("fig3-strip", ov))
+    b = run_impact(load_scene("fig3-strip", {**ov, "drop.interface_contact": "wet"}))
+    ta, tb = a.interface_touches[0], b.interface_touches[0]
+    assert ta["side"] == tb["side"] == "wet"
+    assert tb["action"] == "flagged: the touched point is on the wet part"
+    assert ta["time"] == tb["time"] == pytest.approx(0.2466, abs=1e-3)
+    assert 11.3 < ta["s"] < 11.35  # S1 = 11.3
+    assert np.array_equal(a.simulation.positions, b.simulation.positions)
