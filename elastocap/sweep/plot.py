@@ -3,11 +3,14 @@
 Open circles: open (not encapsulated); filled dots: encapsulated (the paper's criterion);
 grey triangles: undecided runs, a class of their own (with their count); red crosses: runs
 that failed (no result); a red ring: the companion criterion (:mod:`elastocap.criteria`)
-disagrees. Only runs at the sweep's own resolution (level 0) are drawn as points. The
-boundary is drawn through the brackets' midpoints with the half-width as a horizontal
-error bar: blue where ``--verify`` found that the bracket holds, orange where it is not
-verified (not checked, moved, or not one bracket), grey where the line has undecided or
-failed runs. x/l_eg on the vertical axis, We^1/2 (or Delta) on the horizontal one.
+disagrees; purple diamonds: outcome changes of a line other than its threshold (to or from
+undecided, back to open). Only runs at the sweep's own resolution (level 0) are drawn as
+points. Each line's *threshold* (its first change, open -> encapsulated) is drawn through
+the bracket's midpoint with the half-width as a horizontal error bar: blue where
+verification found that it holds, orange where it is not verified (not checked, moved),
+grey for a decided bracket on a line whose undecided runs lie below it; with
+``companion=``, the frame-independent criterion's thresholds in green. x/l_eg on the
+vertical axis, We^1/2 (or Delta) on the horizontal one.
 Optional experimental points (a CSV with columns x_over_leg, we_sqrt, outcome) as
 squares. The title records the scene, every ``--set`` override and the resolution.
 """
@@ -20,6 +23,7 @@ from pathlib import Path
 __all__ = ["load_experiments", "plot_phase_diagram", "settings_line"]
 
 EXPERIMENT_COLUMNS = ("x_over_leg", "we_sqrt", "outcome")
+UNDECIDED = "undecided"
 _OUTCOME_WORDS = {
     "encapsulated": "encapsulated",
     "enc": "encapsulated",
@@ -78,11 +82,79 @@ def settings_line(rep: dict) -> str:
     if rep.get("criterion"):
         parts.append(f"criterion: {rep['criterion']}")
     if rep.get("verify_levels"):
-        parts.append(f"verified to level {rep['verify_levels']}")
+        parts.append(f"verified to level {rep['verify_levels']}"
+                     + (" (every bracket at every level)" if rep.get("verify_every_level")
+                        else ""))
     return "; ".join(parts)
 
 
-def plot_phase_diagram(report, path=None, experiments=None, title: str | None = None):
+def _lines(n: int) -> str:
+    return f"{n} line" + ("" if n == 1 else "s")
+
+
+def _draw_thresholds(ax, rep, hkey, same_var, companion):
+    """Each line's threshold (first open -> encapsulated change) as its bracket's midpoint
+    with the half-width as error bar, by verification; lines without one but with a
+    decided bracket among undecided / failed runs in grey."""
+    verifying = bool(rep.get("verify_levels"))
+    name = "frame-independent criterion" if companion else "threshold"
+    # threshold: the first change from open (to encapsulated, or undecided)
+    if companion:
+        groups = {
+            "verified": ("tab:green", "-", f"{name}: threshold, verified"),
+            "unverified": ("tab:green", "--", f"{name}: threshold, NOT verified"),
+        }
+    else:
+        held = ("holds at every finer level" if rep.get("verify_every_level")
+                else "holds at a finer level")
+        groups = {
+            "verified": ("tab:blue", "-", f"threshold, verified ({held})"),
+            "unverified": ("tab:orange", "--", "threshold, NOT verified" if verifying
+                           else "threshold (not verified: run with --verify)"),
+            "uncertain": ("0.5", ":", "decided runs' bracket; line has undecided/failed runs"),
+        }
+    pts = {k: ([], [], []) for k in groups}
+    for b in rep["boundary"]:
+        if b["status"] == "bracketed":
+            lo, hi = b.get(f"{hkey}_low"), b.get(f"{hkey}_high")
+        elif same_var and b.get("threshold_low") is not None:
+            lo, hi = b["threshold_low"], b["threshold_high"]
+        elif (not companion and b["status"] in ("undecided", "failed")
+              and b.get("decided_status") == "bracketed"):
+            lo, hi = b.get(f"{hkey}_low"), b.get(f"{hkey}_high")
+            if lo is not None and hi is not None:
+                pts["uncertain"][0].append(0.5 * (lo + hi))
+                pts["uncertain"][1].append(b["x"])
+                pts["uncertain"][2].append(0.5 * (hi - lo))
+            continue
+        else:
+            continue
+        if lo is None or hi is None:
+            continue
+        g = "verified" if b.get("verified") else "unverified"
+        pts[g][0].append(0.5 * (lo + hi))
+        pts[g][1].append(b["x"])
+        pts[g][2].append(0.5 * (hi - lo))
+    for g, (color, ls, label) in groups.items():
+        bx, by, berr = pts[g]
+        if bx:
+            eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=1.2, capsize=2.5,
+                             marker="s" if companion else None, ms=3,
+                             label=f"{label} ({_lines(len(bx))})")
+            eb[-1][0].set_linestyle(ls)
+            eb.lines[0].set_linestyle(ls)
+    # a threshold into undecided runs: the first impacts that leave open are not decided
+    und = [b for b in rep["boundary"] if b.get("threshold_to") == UNDECIDED and same_var
+           and b.get("threshold_low") is not None]
+    if und and not companion:
+        ax.plot([0.5 * (b["threshold_low"] + b["threshold_high"]) for b in und],
+                [b["x"] for b in und], "^", ms=8, mfc="none", mec="k", mew=1.2, ls="none",
+                label=f"threshold into undecided runs, no encapsulation below "
+                f"({_lines(len(und))})")
+
+
+def plot_phase_diagram(report, path=None, experiments=None, title: str | None = None,
+                       companion=None):
     """Draw a sweep's phase diagram.
 
     Parameters
@@ -94,6 +166,10 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
     experiments : list of dict or path, optional
         Experimental points (see :func:`load_experiments`), drawn only on a We^1/2 axis.
     title : str, optional
+    companion : SweepResult or dict, optional
+        The same sweep refined and verified with the frame-independent criterion
+        (``criterion="companion_outcome"``, same store): its thresholds are drawn too, in
+        green.
 
     Returns
     -------
@@ -147,44 +223,20 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
             ls="none",
             label="companion criterion disagrees",
         )
-    verifying = bool(rep.get("verify_levels"))
-    groups = {
-        "verified": ("tab:blue", "-", "boundary, verified (bracket holds at 1.5x edges)"),
-        "unverified": ("tab:orange", "--", "boundary, NOT verified" if verifying
-                       else "boundary (not verified: run with --verify)"),
-        "uncertain": ("0.5", ":", "decided runs' bracket; line has undecided/failed runs"),
-    }
-    pts = {k: ([], [], []) for k in groups}
+    same_var = hkey == rep["variable"]
+    _draw_thresholds(ax, rep, hkey, same_var, companion=False)
+    if companion is not None:
+        _draw_thresholds(ax, companion, hkey, same_var, companion=True)
+    # every other outcome change of a line (to or from undecided, back to open)
+    others = []
     for b in rep["boundary"]:
-        lo, hi = b.get(f"{hkey}_low"), b.get(f"{hkey}_high")
-        status = b["status"]
-        if lo is None or hi is None:
-            continue
-        if status == "bracketed":
-            g = "verified" if b.get("verified") else "unverified"
-        elif status in ("undecided", "failed") and b.get("decided_status") == "bracketed":
-            g = "uncertain"
-        else:
-            continue
-        pts[g][0].append(0.5 * (lo + hi))
-        pts[g][1].append(b["x"])
-        pts[g][2].append(0.5 * (hi - lo))
-    for g, (color, ls, label) in groups.items():
-        bx, by, berr = pts[g]
-        if bx:
-            eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=1.2, capsize=2.5,
-                             label=f"{label} ({len(bx)})")
-            eb[-1][0].set_linestyle(ls)
-            eb.lines[0].set_linestyle(ls)
-    nonmono = [b for b in rep["boundary"] if b["status"] == "non-monotonic"]
-    for b in nonmono:
+        thr = (b.get("threshold_low"), b.get("threshold_high"))
         for t in b["transitions"]:
-            v = 0.5 * (t["low"] + t["high"])
-            if hkey != rep["variable"]:
-                continue
-            ax.plot(v, b["x"], "d", color="tab:orange", ms=5)
-    if nonmono:
-        ax.plot([], [], "d", color="tab:orange", label="non-monotonic line: outcome changes")
+            if same_var and (t["low"], t["high"]) != thr:
+                others.append((0.5 * (t["low"] + t["high"]), b["x"]))
+    if others:
+        ax.plot([o[0] for o in others], [o[1] for o in others], "d", color="tab:purple",
+                ms=5, ls="none", label=f"other outcome change on the line ({len(others)})")
     if experiments is not None and use_we:
         exps = experiments if isinstance(experiments, list) else load_experiments(experiments)
         for outcome, style in (("open", {"mfc": "none"}), ("encapsulated", {"mfc": "tab:green"})):
