@@ -40,6 +40,8 @@ BASE = ["--progress", "none", "--workers", "2", "--set", "numerics.accuracy=draf
          "--converge: got 0; expected an integer from 1 to 4"),
         (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--verify", "--converge", "2"],
          "not allowed with argument"),
+        (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--verify", "--every-level"],
+         "--every-level: needs --converge K"),
         (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--export", "r.txt"],
          "--export: got 'r.txt'; expected a file name ending in .csv or .parquet"),
         (["fig3-strip", "--x", "1:3:2"], "one of the arguments --we --delta is required"),
