@@ -55,6 +55,21 @@ def _scene(spec, fast):
     return scene
 
 
+def _threshold_at(out: Path, x: float) -> dict | None:
+    """The Fig 3d line x's threshold from ``out/fig3d.json`` (written just before this figure
+    by ``elastocap figures``), with its verification status; None without that file."""
+    path = out / "fig3d.json"
+    if not path.is_file():
+        return None
+    for b in json.loads(path.read_text()).get("boundary", []):
+        if abs(b["x"] - x) < 1e-9:
+            v = b.get("verification") or {}
+            return {"low": b.get("threshold_low"), "high": b.get("threshold_high"),
+                    "to": b.get("threshold_to"), "n_edges": b.get("n_edges"),
+                    "verification": v.get("status"), "line_status": b.get("status")}
+    return None
+
+
 def main(out_dir, fast: bool = False) -> list[Path]:
     """Writes one frame strip per run and ``fig4_fig5.json`` (outcomes, both criteria)."""
     out = Path(out_dir)
@@ -75,8 +90,10 @@ def main(out_dir, fast: bool = False) -> list[Path]:
 
         comp = companion_outcome(res.simulation.positions[-1], scene)
         summary[name] = {**spec, "outcome": res.outcome, "companion_outcome": comp.outcome,
+                         "reason": res.undecided_reason,
                          "final_measure": res.final_measure, "status": res.status,
-                         "t_end": res.t_end}
+                         "t_end": res.t_end, "n_edges": res.settings.get("n_edges"),
+                         "fig3d_threshold": _threshold_at(out, spec["x"])}
     js = out / "fig4_fig5.json"
     js.write_text(json.dumps(record(summary, scene, fast=fast), indent=1))
     return [*files, js]

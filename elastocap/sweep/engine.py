@@ -227,7 +227,11 @@ class SweepResult:
                 "failed": len(self.failed),
                 "undecided": outcomes[UND],
                 "outcomes": outcomes,
-                "disagreements": sum(r["outcome"] != r["companion_outcome"] for r in self.runs),
+                # runs both criteria decide, differently (an undecided run is undecided
+                # under both)
+                "disagreements": sum(r["outcome"] != r["companion_outcome"]
+                                     and UND not in (r["outcome"], r["companion_outcome"])
+                                     for r in self.runs),
                 "verification": verification,
             },
             "wall_time_s": self.wall_time_s,
@@ -582,10 +586,18 @@ class Sweep:
         return out
 
     # -------------------------------------------------------------------------- analysis
+    def outcome_of(self, row: dict) -> str:
+        """The run's outcome under the sweep's criterion. A run the impact left undecided
+        (not at rest, or its verdict settled after the rod crossed itself: properties of
+        the run, not of the criterion) is undecided under the companion criterion too."""
+        if row["outcome"] == UND:
+            return UND
+        return row[self.criterion]
+
     def _classify(self, ln: _Line, level: int):
         rows = ln.at(level)
         vals = sorted(rows)
-        return classify_line(vals, [rows[v][self.criterion] for v in vals])
+        return classify_line(vals, [self.outcome_of(rows[v]) for v in vals])
 
     def bisect(self, lines: list[_Line], level: int, tol: float | None, stage: str) -> None:
         """Halve every outcome change of ``lines`` at ``level`` until narrower than ``tol``."""
@@ -619,7 +631,7 @@ class Sweep:
         """The line's boundary from its runs at ``level``."""
         rows = ln.at(level)
         vals = sorted(rows)
-        outs = [rows[v][self.criterion] for v in vals]
+        outs = [self.outcome_of(rows[v]) for v in vals]
         status, trans = classify_line(vals, outs)
         dstat = decided_status(vals, outs)
         failed = sorted(ln.failed.get(level, ()))
@@ -686,7 +698,7 @@ class Sweep:
             rows = self._run_on_lines(wanted, level, "verify")
             for (ln, _), row in zip(wanted, rows, strict=True):
                 # down: on while the runs do not stay open; up: on while they do
-                if row is None or ((row[self.criterion] == OPEN) == (moving[ln] == "down")):
+                if row is None or ((self.outcome_of(row) == OPEN) == (moving[ln] == "down")):
                     del moving[ln]  # found the change (or a failed run)
 
     def verify(self, lines: list[_Line], tol: float | None, max_level: int,
@@ -729,8 +741,8 @@ class Sweep:
             for j, ln in enumerate(active):
                 b, info = out[ln]
                 lo_row, hi_row = rows[2 * j], rows[2 * j + 1]
-                lo_o = None if lo_row is None else lo_row[self.criterion]
-                hi_o = None if hi_row is None else hi_row[self.criterion]
+                lo_o = None if lo_row is None else self.outcome_of(lo_row)
+                hi_o = None if hi_row is None else self.outcome_of(hi_row)
                 res = self.levels[fine]
                 check = {"level": b.level, "against": fine, "n_edges": res.n_edges,
                          "dt": res.dt,

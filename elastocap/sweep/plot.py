@@ -135,14 +135,20 @@ def _draw_thresholds(ax, rep, hkey, same_var, companion):
         pts[g][0].append(0.5 * (lo + hi))
         pts[g][1].append(b["x"])
         pts[g][2].append(0.5 * (hi - lo))
+    # one thin line through every threshold in x order (the boundary as a curve), then each
+    # threshold as its bracket, by verification: no line joins brackets of one group only
+    curve = sorted((y, x) for g in ("verified", "unverified") for x, y in zip(pts[g][0],
+                                                                                 pts[g][1]))
+    if len(curve) > 1:
+        ax.plot([c[1] for c in curve], [c[0] for c in curve], "-",
+                color="tab:green" if companion else "0.35", lw=0.8, alpha=0.7, zorder=1)
     for g, (color, ls, label) in groups.items():
         bx, by, berr = pts[g]
         if bx:
-            eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=1.2, capsize=2.5,
-                             marker="s" if companion else None, ms=3,
-                             label=f"{label} ({_lines(len(bx))})")
+            eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=1.4, capsize=3,
+                             marker="s" if companion else "D", ms=3.5, ls="none",
+                             label=f"{label} ({_lines(len(bx))})", zorder=3)
             eb[-1][0].set_linestyle(ls)
-            eb.lines[0].set_linestyle(ls)
     # a threshold into undecided runs: the first impacts that leave open are not decided
     und = [b for b in rep["boundary"] if b.get("threshold_to") == UNDECIDED and same_var
            and b.get("threshold_low") is not None]
@@ -210,7 +216,9 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
         ax.plot([f[fkey] for f in failed], [f["x_over_leg"] for f in failed], "x",
                 color="tab:red", ms=6, mew=1.5, ls="none", label=f"failed, no result "
                 f"({len(failed)})")
-    dis = [r for r in runs if r["outcome"] != r["companion_outcome"]]
+    # an undecided run is undecided under both criteria: rings only where both decided
+    dis = [r for r in runs if r["outcome"] != r["companion_outcome"]
+           and UNDECIDED not in (r["outcome"], r["companion_outcome"])]
     if dis:
         ax.plot(
             [r[hkey] for r in dis],
@@ -221,7 +229,7 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
             ms=9,
             mew=1.4,
             ls="none",
-            label="companion criterion disagrees",
+            label=f"frame-independent criterion disagrees ({len(dis)})",
         )
     same_var = hkey == rep["variable"]
     _draw_thresholds(ax, rep, hkey, same_var, companion=False)

@@ -168,3 +168,16 @@ def crossing_above_run(scene_name, scene_json):
 
 crossing_above_run.runner = "fake-crossing-above"
 
+
+
+def companion_decides_undecided_run(scene_name, scene_json):
+    """As undecided_band_run, but the companion criterion reads the undecided band's final
+    shapes as encapsulated (the final state exists; the run is undecided for its own
+    reasons, e.g. not at rest)."""
+    res = undecided_band_run(scene_name, scene_json)
+    if res["outcome"] == "undecided":
+        res["companion_outcome"] = "encapsulated"
+    return res
+
+
+companion_decides_undecided_run.runner = "fake-companion-decides-undecided"

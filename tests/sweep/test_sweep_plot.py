@@ -36,7 +36,7 @@ def test_markers_boundary_and_disagreements(tmp_path):
     opn, enc = _line(ax, "not encapsulated (4)"), _line(ax, "encapsulated (2)")
     assert len(opn.get_xdata()) == 4 and opn.get_markerfacecolor() == "none"
     assert len(enc.get_xdata()) == 2
-    dis = _line(ax, "companion criterion disagrees")
+    dis = _line(ax, "frame-independent criterion disagrees (1)")
     assert list(dis.get_xdata()) == [2.5] and list(dis.get_ydata()) == [2.0]
     # boundary through the bracket midpoints, half-widths as error bars
     (eb,) = ax.containers

@@ -120,3 +120,18 @@ def test_a_run_the_impact_refuses_comes_back_as_a_picklable_error():
         run_impact_task(scene.name, scene.to_json())
     back = pickle.loads(pickle.dumps(info.value))
     assert "at least 4 are needed" in str(back) or "n_edges >= 78" in str(back)
+
+
+def test_an_undecided_run_is_undecided_under_the_companion_criterion_too(tmp_path, pool):
+    kw = dict(we_sqrts=WE, store=tmp_path / "s.sqlite", refine_tol=0.05, executor=pool,
+              run_fn=fk.companion_decides_undecided_run, verify_levels=1)
+    paper = run_sweep(STRIP, [1.0], **kw)
+    comp = run_sweep(STRIP, [1.0], criterion="companion_outcome", **kw)
+    for res in (paper, comp):
+        (b,) = res.boundary
+        # open below 1.53, then the undecided band: the threshold leads into undecided runs
+        assert b.threshold_to == "undecided" and b.threshold_low < 1.53 <= b.threshold_high
+        assert b.verification["status"] == "holds"
+    # the companion's final-shape verdicts on undecided runs are not disagreements
+    assert comp.to_dict()["counts"]["disagreements"] == 0
+    assert comp.computed == 0  # the paper's sweep ran everything the companion needs
