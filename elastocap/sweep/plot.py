@@ -185,6 +185,8 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
     from matplotlib.figure import Figure
 
     rep = report if isinstance(report, dict) else report.to_dict()
+    if companion is not None and not isinstance(companion, dict):
+        companion = companion.to_dict()
     all_runs = rep["runs"]
     runs = [r for r in all_runs if not r.get("level")]
     use_we = bool(runs) and all(r.get("we_sqrt") is not None for r in runs)
