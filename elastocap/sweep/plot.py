@@ -3,8 +3,8 @@
 Open circles: open (not encapsulated); filled dots: encapsulated (the paper's criterion);
 grey triangles: undecided runs, a class of their own (with their count); red crosses: runs
 that failed (no result); a red ring: the companion criterion (:mod:`elastocap.criteria`)
-disagrees; purple diamonds: outcome changes of a line other than its threshold (to or from
-undecided, back to open). Only runs at the sweep's own resolution (level 0) are drawn as
+disagrees; purple diamonds: outcome changes among a line's drawn runs other than its
+threshold (to or from undecided, back to open). Only runs at the sweep's own resolution (level 0) are drawn as
 points. Each line's *threshold* (its first change, open -> encapsulated) is drawn through
 the bracket's midpoint with the half-width as a horizontal error bar: blue where
 verification found that it holds, orange where it is not verified (not checked, moved),
@@ -145,9 +145,12 @@ def _draw_thresholds(ax, rep, hkey, same_var, companion):
     for g, (color, ls, label) in groups.items():
         bx, by, berr = pts[g]
         if bx:
-            eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=1.4, capsize=3,
-                             marker="s" if companion else "D", ms=3.5, ls="none",
-                             label=f"{label} ({_lines(len(bx))})", zorder=3)
+            # the companion's as larger hollow squares under the paper's diamonds
+            eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=2.6 if companion else 1.4,
+                             capsize=4 if companion else 3, marker="s" if companion else "D",
+                             ms=7 if companion else 3.5, mfc="none" if companion else color,
+                             ls="none", label=f"{label} ({_lines(len(bx))})",
+                             zorder=2 if companion else 3, alpha=0.6 if companion else 1.0)
             eb[-1][0].set_linestyle(ls)
     # a threshold into undecided runs: the first impacts that leave open are not decided
     und = [b for b in rep["boundary"] if b.get("threshold_to") == UNDECIDED and same_var
@@ -234,16 +237,21 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
             label=f"frame-independent criterion disagrees ({len(dis)})",
         )
     same_var = hkey == rep["variable"]
-    _draw_thresholds(ax, rep, hkey, same_var, companion=False)
     if companion is not None:
         _draw_thresholds(ax, companion, hkey, same_var, companion=True)
-    # every other outcome change of a line (to or from undecided, back to open)
+    _draw_thresholds(ax, rep, hkey, same_var, companion=False)
+    # every other outcome change of a line among the runs drawn (level 0): to or from
+    # undecided, back to open; the first change, when it is from open, is the threshold
     others = []
-    for b in rep["boundary"]:
-        thr = (b.get("threshold_low"), b.get("threshold_high"))
-        for t in b["transitions"]:
-            if same_var and (t["low"], t["high"]) != thr:
-                others.append((0.5 * (t["low"] + t["high"]), b["x"]))
+    by_x: dict = {}
+    for r in runs:
+        by_x.setdefault(r["x"], []).append((r[hkey], r["outcome"]))
+    for x, pairs in by_x.items():
+        pairs.sort()
+        changes = [(a, b) for (a, oa), (b, ob) in zip(pairs[:-1], pairs[1:]) if oa != ob]
+        if changes and pairs[0][1] == "open":
+            changes = changes[1:]
+        others += [(0.5 * (a + b), x) for a, b in changes]
     if others:
         ax.plot([o[0] for o in others], [o[1] for o in others], "d", color="tab:purple",
                 ms=5, ls="none", label=f"other outcome change on the line ({len(others)})")

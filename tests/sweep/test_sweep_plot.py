@@ -110,7 +110,9 @@ def test_bad_experiment_csv_by_message(tmp_path, text, match):
 def test_thresholds_into_undecided_other_changes_and_the_companion_criterion():
     rep = _report()
     # x = 2: open up to 1.9, undecided from 2.2 (a threshold into undecided runs), then a
-    # change back at 2.45 that is not the threshold
+    # change back to open between the runs at 2.5 and 3.0, which is not the threshold
+    rep["runs"][5].update(outcome="undecided", companion_outcome="undecided")
+    rep["runs"].append({**rep["runs"][3], "we_sqrt": 3.0})
     rep["boundary"][1].update(
         status="undecided", decided_status="all-open", threshold_low=1.9, threshold_high=2.2,
         threshold_to="undecided", verified=True,
@@ -131,7 +133,7 @@ def test_thresholds_into_undecided_other_changes_and_the_companion_criterion():
     und = _line(ax, "threshold into undecided runs, no encapsulation below (1 line)")
     np.testing.assert_allclose([und.get_xdata(), und.get_ydata()], [[2.05], [2.0]])
     other = _line(ax, "other outcome change on the line (1)")
-    np.testing.assert_allclose([other.get_xdata()[0], other.get_ydata()[0]], [2.45, 2.0])
+    np.testing.assert_allclose([other.get_xdata()[0], other.get_ydata()[0]], [2.75, 2.0])
     cv = labels["frame-independent criterion: threshold, NOT verified (2 lines)"]
     np.testing.assert_allclose(np.asarray(cv.lines[0].get_xdata(), float), [1.25, 2.05])
     assert "every bracket at every level" in ax.get_title()
