@@ -76,6 +76,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "verify that one at the next, up to K levels (1.5^K the edges)",
     )
     parser.add_argument(
+        "--every-level",
+        action="store_true",
+        help="with --converge K: check a bracket that holds again at the next level too, "
+        "up to K, so that every bracket is checked at K finer resolutions",
+    )
+    parser.add_argument(
         "--export",
         metavar="FILE",
         help="also write every run of the store as a table: FILE.csv or FILE.parquet "
@@ -140,6 +146,9 @@ def _validate(args):
         levels = check_verify_levels(args.converge, minimum=1)
     elif args.verify:
         levels = 1
+    if args.every_level and args.converge is None:
+        raise ValueError("--every-level: needs --converge K (the levels to check every "
+                         "bracket at)")
     export = check_export(args.export) if args.export else None
     experiments = load_experiments(args.experiments) if args.experiments else None
     out = Path(args.out) if args.out else Path("out") / f"sweep-{scene.name}"
@@ -213,10 +222,14 @@ def _print_text(rep: dict, files: list[str]) -> None:
 
 def _verification_text(v: dict) -> str:
     s = v["status"]
+    what = "" if v.get("checked", "bracket") == "bracket" else "threshold "
+    levels = len(v.get("checks", []))
     if s == "holds":
-        return "verified: holds at 1.5x the edges"
+        return (f"{what}verified: holds at 1.5x the edges"
+                + (f" and at {levels - 1} finer level(s)" if levels > 1 else ""))
     if s == "holds-at-finer":
-        return f"verified: holds from level {v['holds_at_level']} on (NOT at the sweep's)"
+        return (f"{what}verified: holds from level {v['holds_at_level']} on "
+                "(NOT at the sweep's)")
     if s == "not-applicable":
         return f"NOT verified: {v.get('reason', '')}"
     if v.get("shift") is not None:
@@ -243,6 +256,7 @@ def run(args) -> int:
         scheduler=args.scheduler,
         progress=progress,
         verify_levels=levels,
+        verify_every_level=args.every_level,
         overrides=list(args.overrides)
         + ([f"numerics.accuracy={args.accuracy}"] if getattr(args, "accuracy", None) else []),
     )

@@ -20,13 +20,16 @@ bracket is narrower than the tolerance. Midpoints of all lines are run together,
 per halving, so a round keeps every worker busy. Midpoints are deterministic (exact
 halves), so a resumed refinement finds its earlier runs in the store.
 
-**Verification** (``verify_levels`` >= 1): each bracketed line's two bracket ends are re-run
-at the next level. If both keep their outcomes the bracket *holds*. If not, the boundary
-*moved*: the finer level walks outward from the bracket over the values the line has
+**Verification** (``verify_levels`` >= 1): each line's *threshold*, its first outcome
+change when that is open -> encapsulated (the whole line on a bracketed line; also on a
+line that changes again above it, to undecided or back to open), is checked by re-running
+its two ends at the next level. If both keep their outcomes the threshold *holds*. If not,
+it *moved*: the finer level walks outward from the bracket over the values the line has
 already run until the outcome changes, bisects that to the tolerance, and reports the
 shift of the bracket midpoint. With ``verify_levels`` = K > 1 a moved line's new bracket is
 verified at the following level, and so on, until it holds or level K is reached (K <=
-:data:`MAX_LEVELS`; level k costs about 1.5^(3k) a run with the explicit stepper).
+:data:`MAX_LEVELS`; level k costs about 1.5^(3k) a run with the explicit stepper); with
+``verify_every_level`` a bracket that holds is checked again at each following level too.
 
 **Failures.** A run that raised is recorded as failed with the reason (store table
 ``failures``, and the report). When a local worker process dies (killed, out of memory),
@@ -55,7 +58,8 @@ from elastocap.scene import Scene
 from elastocap.sweep.executors import SweepExecutor, open_executor
 from elastocap.sweep.grid import SkippedPoint, SweepPoint, grid_points, length_unit, make_point
 from elastocap.sweep.progress import NoProgress, Progress
-from elastocap.sweep.refine import ENC, OPEN, UND, Boundary, classify_line, decided_status
+from elastocap.sweep.refine import (ENC, OPEN, UND, Boundary, classify_line, decided_status,
+                                    first_threshold)
 from elastocap.sweep.store import OUTCOMES, ResultStore, StoreError
 from elastocap.sweep.tasks import RESULT_KEYS, run_impact_task, runner_name
 
@@ -120,19 +124,24 @@ def sweep_resolutions(scene: Scene, points, levels: int = 0) -> list[Resolution]
 
     Level 0: ``numerics.n_edges`` if the scene sets it, else the edges the scene's accuracy
     preset gives the point of largest wetted length Delta
-    (:func:`elastocap.impact.impact_settings`); the time step is then the scene's
+    (:func:`elastocap.impact.impact_settings`), raised where needed so that the smallest
+    Delta spans ``MIN_WET_EDGES`` edges (the impact refuses fewer); the time step is then the scene's
     ``numerics.dt``, or the automatic one for those edges (the same for every point: it
     depends on the edge length and the rod only). Level k: ceil(1.5 n_{k-1}) edges and
     dt_k = min(automatic dt at n_k, dt_{k-1} / 2).
     """
-    from elastocap.impact import impact_settings
+    from elastocap.impact import MIN_WET_EDGES, impact_settings
 
     if not points:
         raise ValueError("sweep: no point to run (every requested point was skipped)")
     widest = max(points, key=lambda p: p.wetted_length)
     base = scene.with_overrides(widest.overrides())
     num = scene.numerics
-    n = num.n_edges or impact_settings(base)["n_edges"]
+    # the preset's edges at the largest Delta, and enough for the smallest Delta to span
+    # the impact's minimum of wet edges (else its runs would be refused)
+    narrowest = min(p.wetted_length for p in points)
+    n_wet = math.ceil(MIN_WET_EDGES * scene.rod.length / narrowest * (1.0 - 1e-12))
+    n = num.n_edges or max(impact_settings(base)["n_edges"], n_wet)
     st = impact_settings(base.with_overrides({"numerics.n_edges": n}))
     out = [Resolution(0, int(n), float(st["dt"]), bool(num.dt), num.integrator)]
     for k in range(1, levels + 1):
@@ -178,6 +187,7 @@ class SweepResult:
     resolutions: list[Resolution] = field(default_factory=list)
     verify_levels: int = 0
     overrides: list[str] = field(default_factory=list)
+    verify_every_level: bool = False
 
     def to_dict(self) -> dict:
         def bnd(b: Boundary) -> dict:
@@ -205,6 +215,7 @@ class SweepResult:
             "resolution": self.resolutions[0].to_dict() if self.resolutions else None,
             "levels": [r.to_dict() for r in self.resolutions],
             "verify_levels": self.verify_levels,
+            "verify_every_level": self.verify_every_level,
             "overrides": list(self.overrides),
             "store": self.store,
             "executor": self.executor,
@@ -216,7 +227,11 @@ class SweepResult:
                 "failed": len(self.failed),
                 "undecided": outcomes[UND],
                 "outcomes": outcomes,
-                "disagreements": sum(r["outcome"] != r["companion_outcome"] for r in self.runs),
+                # runs both criteria decide, differently (an undecided run is undecided
+                # under both)
+                "disagreements": sum(r["outcome"] != r["companion_outcome"]
+                                     and UND not in (r["outcome"], r["companion_outcome"])
+                                     for r in self.runs),
                 "verification": verification,
             },
             "wall_time_s": self.wall_time_s,
@@ -571,10 +586,18 @@ class Sweep:
         return out
 
     # -------------------------------------------------------------------------- analysis
+    def outcome_of(self, row: dict) -> str:
+        """The run's outcome under the sweep's criterion. A run the impact left undecided
+        (not at rest, or its verdict settled after the rod crossed itself: properties of
+        the run, not of the criterion) is undecided under the companion criterion too."""
+        if row["outcome"] == UND:
+            return UND
+        return row[self.criterion]
+
     def _classify(self, ln: _Line, level: int):
         rows = ln.at(level)
         vals = sorted(rows)
-        return classify_line(vals, [rows[v][self.criterion] for v in vals])
+        return classify_line(vals, [self.outcome_of(rows[v]) for v in vals])
 
     def bisect(self, lines: list[_Line], level: int, tol: float | None, stage: str) -> None:
         """Halve every outcome change of ``lines`` at ``level`` until narrower than ``tol``."""
@@ -608,7 +631,7 @@ class Sweep:
         """The line's boundary from its runs at ``level``."""
         rows = ln.at(level)
         vals = sorted(rows)
-        outs = [rows[v][self.criterion] for v in vals]
+        outs = [self.outcome_of(rows[v]) for v in vals]
         status, trans = classify_line(vals, outs)
         dstat = decided_status(vals, outs)
         failed = sorted(ln.failed.get(level, ()))
@@ -638,6 +661,10 @@ class Sweep:
             b.low = max(opens)
         elif dstat == "all-encapsulated":
             b.high = min(encs)
+        thr = first_threshold(trans)
+        if thr is not None and not failed:
+            b.threshold_low, b.threshold_high = thr.low, thr.high
+            b.threshold_to = thr.outcome_high
         b.converged = bool(
             tol is not None
             and trans
@@ -670,12 +697,16 @@ class Sweep:
                 return
             rows = self._run_on_lines(wanted, level, "verify")
             for (ln, _), row in zip(wanted, rows, strict=True):
-                if row is None or row[self.criterion] != (ENC if moving[ln] == "down" else OPEN):
-                    del moving[ln]  # found the change (or an undecided / failed run)
+                # down: on while the runs do not stay open; up: on while they do
+                if row is None or ((self.outcome_of(row) == OPEN) == (moving[ln] == "down")):
+                    del moving[ln]  # found the change (or a failed run)
 
-    def verify(self, lines: list[_Line], tol: float | None, max_level: int) -> dict:
+    def verify(self, lines: list[_Line], tol: float | None, max_level: int,
+               every_level: bool = False) -> dict:
         """Verify each line's level-0 bracket at level 1, and (``max_level`` > 1) a moved
-        line's new bracket at the next level, up to ``max_level``.
+        line's new bracket at the next level, up to ``max_level``. ``every_level``: a
+        bracket that holds is checked again at the next level too, up to ``max_level``
+        (it "holds" only if it holds at every level checked).
 
         Returns
         -------
@@ -685,52 +716,69 @@ class Sweep:
         b0 = {ln: self.boundary(ln, 0, tol) for ln in lines}
         active = []
         for ln, b in b0.items():
-            if b.status == "bracketed":
+            if b.threshold_low is not None:
                 active.append(ln)
                 out[ln] = (b, {"status": "pending", "checks": [], "brackets": [
-                    self._bracket_dict(b)], "shift": None, "holds_at_level": None})
+                    self._bracket_dict(b)], "shift": None, "holds_at_level": None,
+                    "checked": "bracket" if b.status == "bracketed" else
+                    f"threshold (first change from open, to {b.threshold_to}; the line "
+                    f"is {b.status})"})
             else:
                 b.verified = False
                 out[ln] = (b, {"status": "not-applicable", "checks": [], "brackets": [],
                                "shift": None, "holds_at_level": None,
-                               "reason": f"line is {b.status}, not one bracket"})
+                               "reason": f"line is {b.status}, no change from open "
+                               "(no threshold)"})
         level = 0
         while active and level < max_level:
             fine = level + 1
             wanted = []
             for ln in active:
                 b = out[ln][0]
-                wanted += [(ln, b.low), (ln, b.high)]
+                wanted += [(ln, b.threshold_low), (ln, b.threshold_high)]
             rows = self._run_on_lines(wanted, fine, "verify")
             moving, nxt = {}, []
             for j, ln in enumerate(active):
                 b, info = out[ln]
                 lo_row, hi_row = rows[2 * j], rows[2 * j + 1]
-                lo_o = None if lo_row is None else lo_row[self.criterion]
-                hi_o = None if hi_row is None else hi_row[self.criterion]
+                lo_o = None if lo_row is None else self.outcome_of(lo_row)
+                hi_o = None if hi_row is None else self.outcome_of(hi_row)
                 res = self.levels[fine]
-                check = {"level": level, "against": fine, "n_edges": res.n_edges, "dt": res.dt,
-                         "low": b.low, "high": b.high, "low_outcome": lo_o,
+                check = {"level": b.level, "against": fine, "n_edges": res.n_edges,
+                         "dt": res.dt,
+                         "low": b.threshold_low, "high": b.threshold_high,
+                         "low_outcome": lo_o,
                          "high_outcome": hi_o}
+                # the threshold is the first change from open: it holds while its low end
+                # stays open and its high end does not (encapsulated, or undecided where it
+                # was undecided); a high end that turns undecided from encapsulated is not
+                # a decided check
+                to = b.threshold_to
                 if lo_o is None or hi_o is None:
                     check["result"] = "failed"
-                elif UND in (lo_o, hi_o):
-                    check["result"] = "undecided"
-                elif (lo_o, hi_o) == (OPEN, ENC):
+                elif lo_o == OPEN and hi_o == to:
                     check["result"] = "holds"
-                elif (lo_o, hi_o) == (ENC, OPEN):
+                elif lo_o == OPEN and hi_o != OPEN:
+                    check["result"] = "undecided" if hi_o == UND else "holds"
+                elif lo_o != OPEN and hi_o == OPEN:
                     check["result"] = "reversed"
                 else:
                     check["result"] = "moved"
-                    moving[ln] = "down" if lo_o == ENC else "up"
+                    moving[ln] = "down" if lo_o != OPEN else "up"
                 info["checks"].append(check)
                 if check["result"] == "holds":
-                    info["status"] = "holds" if level == 0 else "holds-at-finer"
-                    info["holds_at_level"] = level
+                    if info["holds_at_level"] is None:
+                        info["holds_at_level"] = b.level
+                    info["status"] = ("holds" if info["holds_at_level"] == 0
+                                      else "holds-at-finer")
                     b.verified = True
-                elif check["result"] != "moved":
-                    info["status"] = check["result"]
-                    b.verified = False
+                    if every_level:
+                        nxt.append(ln)
+                else:
+                    info["holds_at_level"] = None
+                    if check["result"] != "moved":
+                        info["status"] = check["result"]
+                        b.verified = False
             self._probe(dict(moving), fine)
             moved = list(moving)
             self.bisect(moved, fine, tol, "verify")
@@ -739,9 +787,10 @@ class Sweep:
                 bf = self.boundary(ln, fine, tol)
                 info["brackets"].append(self._bracket_dict(bf))
                 bf.verified = False
-                if bf.status == "bracketed":
+                if bf.threshold_low is not None:
                     info["status"] = "moved"
-                    info["shift"] = 0.5 * (bf.low + bf.high) - 0.5 * (b0[ln].low + b0[ln].high)
+                    info["shift"] = (0.5 * (bf.threshold_low + bf.threshold_high)
+                                     - 0.5 * (b0[ln].threshold_low + b0[ln].threshold_high))
                     nxt.append(ln)
                 else:
                     info["status"] = f"moved, {bf.status} at level {fine}"
@@ -756,7 +805,7 @@ class Sweep:
     @staticmethod
     def _bracket_dict(b: Boundary) -> dict:
         return {"level": b.level, "n_edges": b.n_edges, "dt": b.dt, "status": b.status,
-                "low": b.low, "high": b.high}
+                "low": b.threshold_low, "high": b.threshold_high, "to": b.threshold_to}
 
 
 def _boundary_both_units(b: Boundary, scene: Scene) -> None:
@@ -828,6 +877,7 @@ def run_sweep(
     progress: Progress | None = None,
     criterion: str = "outcome",
     verify_levels: int = 0,
+    verify_every_level: bool = False,
     overrides=(),
 ) -> SweepResult:
     """Sweep impacts over (x, We^1/2) or (x, Delta), refine and verify the boundary.
@@ -861,6 +911,10 @@ def run_sweep(
         0: no verification; 1: ``--verify`` (each bracket's ends re-run at 1.5x the edges
         and half the time step); K > 1: ``--converge K`` (a moved bracket is located and
         verified again at the next level, up to level K).
+    verify_every_level : bool
+        With ``verify_levels`` = K: a bracket that holds is checked again at the next
+        level too, up to level K, so that every bracket is checked at K finer levels
+        (``--converge K --every-level``). A bracket holds only if it holds at each.
     overrides : sequence of str
         The ``--set`` overrides the scene was made with (recorded in the report).
 
@@ -881,7 +935,7 @@ def run_sweep(
         ResultStore.check(store, store_resolution(levels))
     progress = progress or NoProgress()
     args = (scene, xs, variable, points, skipped, levels, run_fn, progress, refine_tol,
-            criterion, verify_levels, list(overrides), t0)
+            criterion, verify_levels, bool(verify_every_level), list(overrides), t0)
     try:
         if executor is None:
             with open_executor(workers, scheduler) as ex, _opened(store) as st:
@@ -906,7 +960,7 @@ def _opened(store):
 
 
 def _run(store, executor, scene, xs, variable, points, skipped, levels, run_fn, progress,
-         refine_tol, criterion, verify_levels, overrides, t0) -> SweepResult:
+         refine_tol, criterion, verify_levels, every_level, overrides, t0) -> SweepResult:
     try:
         store.ensure_resolution(store_resolution(levels))
     except StoreError as err:
@@ -927,7 +981,7 @@ def _run(store, executor, scene, xs, variable, points, skipped, levels, run_fn, 
     # a line whose grid has a failed run is not refined further on a guess
     sw.bisect([ln for ln in ordered if not ln.failed.get(0)], 0, refine_tol, "refine")
     if verify_levels:
-        found = sw.verify(ordered, refine_tol, verify_levels)
+        found = sw.verify(ordered, refine_tol, verify_levels, every_level)
         boundaries = [found[ln][0] for ln in ordered]
     else:
         boundaries = [sw.boundary(ln, 0, refine_tol) for ln in ordered]
@@ -959,5 +1013,6 @@ def _run(store, executor, scene, xs, variable, points, skipped, levels, run_fn, 
         criterion=criterion,
         resolutions=levels,
         verify_levels=verify_levels,
+        verify_every_level=every_level and bool(verify_levels),
         overrides=overrides,
     )

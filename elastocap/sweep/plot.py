@@ -3,11 +3,14 @@
 Open circles: open (not encapsulated); filled dots: encapsulated (the paper's criterion);
 grey triangles: undecided runs, a class of their own (with their count); red crosses: runs
 that failed (no result); a red ring: the companion criterion (:mod:`elastocap.criteria`)
-disagrees. Only runs at the sweep's own resolution (level 0) are drawn as points. The
-boundary is drawn through the brackets' midpoints with the half-width as a horizontal
-error bar: blue where ``--verify`` found that the bracket holds, orange where it is not
-verified (not checked, moved, or not one bracket), grey where the line has undecided or
-failed runs. x/l_eg on the vertical axis, We^1/2 (or Delta) on the horizontal one.
+disagrees; purple diamonds: outcome changes among a line's drawn runs other than its
+threshold (to or from undecided, back to open). Only runs at the sweep's own resolution (level 0) are drawn as
+points. Each line's *threshold* (its first change, open -> encapsulated) is drawn through
+the bracket's midpoint with the half-width as a horizontal error bar: blue where
+verification found that it holds, orange where it is not verified (not checked, moved),
+grey for a decided bracket on a line whose undecided runs lie below it; with
+``companion=``, the frame-independent criterion's thresholds in green. x/l_eg on the
+vertical axis, We^1/2 (or Delta) on the horizontal one.
 Optional experimental points (a CSV with columns x_over_leg, we_sqrt, outcome) as
 squares. The title records the scene, every ``--set`` override and the resolution.
 """
@@ -20,6 +23,7 @@ from pathlib import Path
 __all__ = ["load_experiments", "plot_phase_diagram", "settings_line"]
 
 EXPERIMENT_COLUMNS = ("x_over_leg", "we_sqrt", "outcome")
+UNDECIDED = "undecided"
 _OUTCOME_WORDS = {
     "encapsulated": "encapsulated",
     "enc": "encapsulated",
@@ -78,11 +82,88 @@ def settings_line(rep: dict) -> str:
     if rep.get("criterion"):
         parts.append(f"criterion: {rep['criterion']}")
     if rep.get("verify_levels"):
-        parts.append(f"verified to level {rep['verify_levels']}")
+        parts.append(f"verified to level {rep['verify_levels']}"
+                     + (" (every bracket at every level)" if rep.get("verify_every_level")
+                        else ""))
     return "; ".join(parts)
 
 
-def plot_phase_diagram(report, path=None, experiments=None, title: str | None = None):
+def _lines(n: int) -> str:
+    return f"{n} line" + ("" if n == 1 else "s")
+
+
+def _draw_thresholds(ax, rep, hkey, same_var, companion):
+    """Each line's threshold (first open -> encapsulated change) as its bracket's midpoint
+    with the half-width as error bar, by verification; lines without one but with a
+    decided bracket among undecided / failed runs in grey."""
+    verifying = bool(rep.get("verify_levels"))
+    name = "frame-independent criterion" if companion else "threshold"
+    # threshold: the first change from open (to encapsulated, or undecided)
+    if companion:
+        groups = {
+            "verified": ("tab:green", "-", f"{name}: threshold, verified"),
+            "unverified": ("tab:green", "--", f"{name}: threshold, NOT verified"),
+        }
+    else:
+        held = ("holds at every finer level" if rep.get("verify_every_level")
+                else "holds at a finer level")
+        groups = {
+            "verified": ("tab:blue", "-", f"threshold, verified ({held})"),
+            "unverified": ("tab:orange", "--", "threshold, NOT verified" if verifying
+                           else "threshold (not verified: run with --verify)"),
+            "uncertain": ("0.5", ":", "decided runs' bracket; line has undecided/failed runs"),
+        }
+    pts = {k: ([], [], []) for k in groups}
+    for b in rep["boundary"]:
+        if b["status"] == "bracketed":
+            lo, hi = b.get(f"{hkey}_low"), b.get(f"{hkey}_high")
+        elif same_var and b.get("threshold_low") is not None:
+            lo, hi = b["threshold_low"], b["threshold_high"]
+        elif (not companion and b["status"] in ("undecided", "failed")
+              and b.get("decided_status") == "bracketed"):
+            lo, hi = b.get(f"{hkey}_low"), b.get(f"{hkey}_high")
+            if lo is not None and hi is not None:
+                pts["uncertain"][0].append(0.5 * (lo + hi))
+                pts["uncertain"][1].append(b["x"])
+                pts["uncertain"][2].append(0.5 * (hi - lo))
+            continue
+        else:
+            continue
+        if lo is None or hi is None:
+            continue
+        g = "verified" if b.get("verified") else "unverified"
+        pts[g][0].append(0.5 * (lo + hi))
+        pts[g][1].append(b["x"])
+        pts[g][2].append(0.5 * (hi - lo))
+    # one thin line through every threshold in x order (the boundary as a curve), then each
+    # threshold as its bracket, by verification: no line joins brackets of one group only
+    curve = sorted((y, x) for g in ("verified", "unverified") for x, y in zip(pts[g][0],
+                                                                                 pts[g][1]))
+    if len(curve) > 1:
+        ax.plot([c[1] for c in curve], [c[0] for c in curve], "-",
+                color="tab:green" if companion else "0.35", lw=0.8, alpha=0.7, zorder=1)
+    for g, (color, ls, label) in groups.items():
+        bx, by, berr = pts[g]
+        if bx:
+            # the companion's as larger hollow squares under the paper's diamonds
+            eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=2.6 if companion else 1.4,
+                             capsize=4 if companion else 3, marker="s" if companion else "D",
+                             ms=7 if companion else 3.5, mfc="none" if companion else color,
+                             ls="none", label=f"{label} ({_lines(len(bx))})",
+                             zorder=2 if companion else 3, alpha=0.6 if companion else 1.0)
+            eb[-1][0].set_linestyle(ls)
+    # a threshold into undecided runs: the first impacts that leave open are not decided
+    und = [b for b in rep["boundary"] if b.get("threshold_to") == UNDECIDED and same_var
+           and b.get("threshold_low") is not None]
+    if und and not companion:
+        ax.plot([0.5 * (b["threshold_low"] + b["threshold_high"]) for b in und],
+                [b["x"] for b in und], "^", ms=8, mfc="none", mec="k", mew=1.2, ls="none",
+                label=f"threshold into undecided runs, no encapsulation below "
+                f"({_lines(len(und))})")
+
+
+def plot_phase_diagram(report, path=None, experiments=None, title: str | None = None,
+                       companion=None):
     """Draw a sweep's phase diagram.
 
     Parameters
@@ -94,6 +175,10 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
     experiments : list of dict or path, optional
         Experimental points (see :func:`load_experiments`), drawn only on a We^1/2 axis.
     title : str, optional
+    companion : SweepResult or dict, optional
+        The same sweep refined and verified with the frame-independent criterion
+        (``criterion="companion_outcome"``, same store): its thresholds are drawn too, in
+        green.
 
     Returns
     -------
@@ -103,6 +188,8 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
     from matplotlib.figure import Figure
 
     rep = report if isinstance(report, dict) else report.to_dict()
+    if companion is not None and not isinstance(companion, dict):
+        companion = companion.to_dict()
     all_runs = rep["runs"]
     runs = [r for r in all_runs if not r.get("level")]
     use_we = bool(runs) and all(r.get("we_sqrt") is not None for r in runs)
@@ -134,7 +221,9 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
         ax.plot([f[fkey] for f in failed], [f["x_over_leg"] for f in failed], "x",
                 color="tab:red", ms=6, mew=1.5, ls="none", label=f"failed, no result "
                 f"({len(failed)})")
-    dis = [r for r in runs if r["outcome"] != r["companion_outcome"]]
+    # an undecided run is undecided under both criteria: rings only where both decided
+    dis = [r for r in runs if r["outcome"] != r["companion_outcome"]
+           and UNDECIDED not in (r["outcome"], r["companion_outcome"])]
     if dis:
         ax.plot(
             [r[hkey] for r in dis],
@@ -145,46 +234,27 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
             ms=9,
             mew=1.4,
             ls="none",
-            label="companion criterion disagrees",
+            label=f"frame-independent criterion disagrees ({len(dis)})",
         )
-    verifying = bool(rep.get("verify_levels"))
-    groups = {
-        "verified": ("tab:blue", "-", "boundary, verified (bracket holds at 1.5x edges)"),
-        "unverified": ("tab:orange", "--", "boundary, NOT verified" if verifying
-                       else "boundary (not verified: run with --verify)"),
-        "uncertain": ("0.5", ":", "decided runs' bracket; line has undecided/failed runs"),
-    }
-    pts = {k: ([], [], []) for k in groups}
-    for b in rep["boundary"]:
-        lo, hi = b.get(f"{hkey}_low"), b.get(f"{hkey}_high")
-        status = b["status"]
-        if lo is None or hi is None:
-            continue
-        if status == "bracketed":
-            g = "verified" if b.get("verified") else "unverified"
-        elif status in ("undecided", "failed") and b.get("decided_status") == "bracketed":
-            g = "uncertain"
-        else:
-            continue
-        pts[g][0].append(0.5 * (lo + hi))
-        pts[g][1].append(b["x"])
-        pts[g][2].append(0.5 * (hi - lo))
-    for g, (color, ls, label) in groups.items():
-        bx, by, berr = pts[g]
-        if bx:
-            eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=1.2, capsize=2.5,
-                             label=f"{label} ({len(bx)})")
-            eb[-1][0].set_linestyle(ls)
-            eb.lines[0].set_linestyle(ls)
-    nonmono = [b for b in rep["boundary"] if b["status"] == "non-monotonic"]
-    for b in nonmono:
-        for t in b["transitions"]:
-            v = 0.5 * (t["low"] + t["high"])
-            if hkey != rep["variable"]:
-                continue
-            ax.plot(v, b["x"], "d", color="tab:orange", ms=5)
-    if nonmono:
-        ax.plot([], [], "d", color="tab:orange", label="non-monotonic line: outcome changes")
+    same_var = hkey == rep["variable"]
+    if companion is not None:
+        _draw_thresholds(ax, companion, hkey, same_var, companion=True)
+    _draw_thresholds(ax, rep, hkey, same_var, companion=False)
+    # every other outcome change of a line among the runs drawn (level 0): to or from
+    # undecided, back to open; the first change, when it is from open, is the threshold
+    others = []
+    by_x: dict = {}
+    for r in runs:
+        by_x.setdefault(r["x"], []).append((r[hkey], r["outcome"]))
+    for x, pairs in by_x.items():
+        pairs.sort()
+        changes = [(a, b) for (a, oa), (b, ob) in zip(pairs[:-1], pairs[1:]) if oa != ob]
+        if changes and pairs[0][1] == "open":
+            changes = changes[1:]
+        others += [(0.5 * (a + b), x) for a, b in changes]
+    if others:
+        ax.plot([o[0] for o in others], [o[1] for o in others], "d", color="tab:purple",
+                ms=5, ls="none", label=f"other outcome change on the line ({len(others)})")
     if experiments is not None and use_we:
         exps = experiments if isinstance(experiments, list) else load_experiments(experiments)
         for outcome, style in (("open", {"mfc": "none"}), ("encapsulated", {"mfc": "tab:green"})):

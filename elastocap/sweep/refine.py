@@ -19,7 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["Boundary", "CLASSES", "Transition", "classify_line", "decided_status"]
+__all__ = ["Boundary", "CLASSES", "Transition", "classify_line", "decided_status",
+           "first_threshold"]
 
 OPEN, ENC, UND = "open", "encapsulated", "undecided"
 CLASSES = (OPEN, ENC, UND)
@@ -86,7 +87,19 @@ class Boundary:
     verification : dict or None
         What ``--verify`` found (None: not verified); see :mod:`elastocap.sweep.engine`.
     verified : bool or None
-        The bracket was re-run at the next finer level and holds (None: not checked).
+        The threshold bracket was re-run at the next finer level and holds (None: not
+        checked).
+    threshold_low, threshold_high : float or None
+        The line's *threshold*: its first outcome change when that change is from open
+        (every run below it open; :func:`first_threshold`): the smallest impact that does
+        not stay open. Equal to ``low`` / ``high`` on a bracketed line; also defined where
+        the line changes again above it (undecided runs, a flip back to open). None
+        otherwise, and on a line with a failed run. This is the bracket that verification
+        checks.
+    threshold_to : str or None
+        What the line turns into at its threshold: "encapsulated" (the paper's boundary)
+        or "undecided" (the first impact that leaves open cannot be decided, e.g. the rod
+        crossed itself).
     """
 
     x_over_leg: float
@@ -112,6 +125,9 @@ class Boundary:
     failed: list[float] = field(default_factory=list)
     verification: dict | None = None
     verified: bool | None = None
+    threshold_low: float | None = None
+    threshold_high: float | None = None
+    threshold_to: str | None = None
 
     def to_dict(self) -> dict:
         d = dict(vars(self))
@@ -168,6 +184,16 @@ def classify_line(values, outcomes) -> tuple[str, list[Transition]]:
             raise ValueError(
                 f"outcome: got {o!r} at {v!r}; expected 'open', 'encapsulated' or 'undecided'")
     return _status(pairs)
+
+
+def first_threshold(transitions) -> Transition | None:
+    """The first of a line's outcome changes (increasing value) if it starts from open,
+    else None: every run below it is open, so it brackets the smallest impact that does
+    not stay open (``outcome_high``: encapsulated, or undecided), whatever the line does
+    above it."""
+    if transitions and transitions[0].outcome_low == OPEN:
+        return transitions[0]
+    return None
 
 
 def decided_status(values, outcomes) -> str:

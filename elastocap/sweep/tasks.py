@@ -158,7 +158,13 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
     from elastocap.scene import build_scene
 
     scene = build_scene(json.loads(scene_json), scene_name)
-    res = run_impact(scene)
+    try:
+        res = run_impact(scene)
+    except Exception as err:
+        # re-raised as a plain RuntimeError: an exception with its own constructor (such as
+        # SceneError) does not unpickle in the sweep's process, and the pool would read
+        # that as a dead worker
+        raise RuntimeError(f"{type(err).__name__}: {err}") from None
     if res.outcome == "failed":  # a numerical failure: the sweep records it with the reason
         raise RuntimeError(f"impact failed: {res.message}")
     final = res.simulation.positions[-1]

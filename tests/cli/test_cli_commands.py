@@ -52,6 +52,7 @@ DOCUMENTED = [
 EXEMPT = {
     ("sweep", "--scheduler"): "a dask cluster: tests/sweep (a real LocalCluster)",
     ("sweep", "--converge"): "levels of verification: tests/sweep/test_sweep_resolution.py",
+    ("sweep", "--every-level"): "with --converge: tests/sweep/test_sweep_threshold.py",
 }
 
 

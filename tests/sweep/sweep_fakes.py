@@ -144,3 +144,40 @@ def sleeping_run(scene_name, scene_json):
 
 
 sleeping_run.runner = "fake-sleeping"
+
+
+def late_shift_run(scene_name, scene_json):
+    """Threshold We^1/2 = 1.03 + 0.5 x, lowered by 0.3 from 150 edges on: a bracket that
+    holds at 1.5x the edges of a coarse sweep and moves at 2.25x."""
+    x, w, n = point(scene_json)
+    return threshold(x, w, 1.03 + 0.5 * x - (0.3 if n >= 150 else 0.0))
+
+
+late_shift_run.runner = "fake-late-shift"
+
+
+def crossing_above_run(scene_name, scene_json):
+    """Open below 1.03 + 0.5 x (+ 0.3 under 100 edges), encapsulated up to 1.2 above it,
+    undecided (the rod crossed itself) beyond: a threshold with undecided runs above."""
+    x, w, n = point(scene_json)
+    thr = 1.03 + 0.5 * x + (0.3 if n < 100 else 0.0)
+    if w > thr + 1.2:
+        return result("undecided", "the rod crossed itself before the verdict settled")
+    return threshold(x, w, thr)
+
+
+crossing_above_run.runner = "fake-crossing-above"
+
+
+
+def companion_decides_undecided_run(scene_name, scene_json):
+    """As undecided_band_run, but the companion criterion reads the undecided band's final
+    shapes as encapsulated (the final state exists; the run is undecided for its own
+    reasons, e.g. not at rest)."""
+    res = undecided_band_run(scene_name, scene_json)
+    if res["outcome"] == "undecided":
+        res["companion_outcome"] = "encapsulated"
+    return res
+
+
+companion_decides_undecided_run.runner = "fake-companion-decides-undecided"

@@ -40,6 +40,8 @@ BASE = ["--progress", "none", "--workers", "2", "--set", "numerics.accuracy=draf
          "--converge: got 0; expected an integer from 1 to 4"),
         (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--verify", "--converge", "2"],
          "not allowed with argument"),
+        (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--verify", "--every-level"],
+         "--every-level: needs --converge K"),
         (["fig3-strip", "--x", "1:3:2", "--we", "1:2:2", "--export", "r.txt"],
          "--export: got 'r.txt'; expected a file name ending in .csv or .parquet"),
         (["fig3-strip", "--x", "1:3:2"], "one of the arguments --we --delta is required"),
@@ -153,7 +155,7 @@ def test_text_report_marks_every_line_verified_or_not(tmp_path, capsys):
     # x = 0.5: only We^1/2 = 0.5 fits on the strip (open); x = 1: threshold 1.53, holds;
     # x = 3: moves by -0.3
     assert len(lines) == 3
-    assert "all-open" in lines[0] and "NOT verified: line is all-open, not one bracket" in lines[0]
+    assert "all-open" in lines[0] and "NOT verified: line is all-open, no change from open" in lines[0]
     assert "verified: holds at 1.5x the edges" in lines[1]
     assert "NOT verified: moved, the bracket midpoint moves by -0.3" in lines[2]
-    assert "[level 1: 110 edges]" in lines[2]
+    assert "[level 1: 117 edges]" in lines[2]  # 1.5 x 78 (4 edges across Delta(0.5))

@@ -36,7 +36,7 @@ def test_markers_boundary_and_disagreements(tmp_path):
     opn, enc = _line(ax, "not encapsulated (4)"), _line(ax, "encapsulated (2)")
     assert len(opn.get_xdata()) == 4 and opn.get_markerfacecolor() == "none"
     assert len(enc.get_xdata()) == 2
-    dis = _line(ax, "companion criterion disagrees")
+    dis = _line(ax, "frame-independent criterion disagrees (1)")
     assert list(dis.get_xdata()) == [2.5] and list(dis.get_ydata()) == [2.0]
     # boundary through the bracket midpoints, half-widths as error bars
     (eb,) = ax.containers
@@ -46,7 +46,7 @@ def test_markers_boundary_and_disagreements(tmp_path):
     np.testing.assert_allclose([s[1][0] - s[0][0] for s in segs], [0.2, 0.3])
     assert ax.get_ylabel() == r"$x/\ell_{eg}$" and "We" in ax.get_xlabel()
     assert (tmp_path / "p.png").stat().st_size > 1000
-    assert eb.get_label() == "boundary (not verified: run with --verify) (2)"
+    assert eb.get_label() == "threshold (not verified: run with --verify) (2 lines)"
     assert not [ln for ln in ax.get_lines() if ln.get_label().startswith("undecided")]
 
 
@@ -67,9 +67,9 @@ def test_undecided_failed_verified_and_the_overrides_in_the_title():
     fl = _line(ax, "failed, no result (1)")
     assert (list(fl.get_xdata()), list(fl.get_ydata())) == ([3.0], [2.0])
     labels = {c.get_label(): c for c in ax.containers}
-    ver = labels["boundary, verified (bracket holds at 1.5x edges) (1)"]
+    ver = labels["threshold, verified (holds at a finer level) (1 line)"]
     np.testing.assert_allclose(np.asarray(ver.lines[0].get_ydata(), float), [2.0])
-    unc = labels["decided runs' bracket; line has undecided/failed runs (1)"]
+    unc = labels["decided runs' bracket; line has undecided/failed runs (1 line)"]
     np.testing.assert_allclose(np.asarray(unc.lines[0].get_ydata(), float), [1.0])
     title = ax.get_title()
     assert "--set numerics.accuracy=draft, effects.damping=0.1" in title
@@ -105,3 +105,35 @@ def test_bad_experiment_csv_by_message(tmp_path, text, match):
     p.write_text(text)
     with pytest.raises(ValueError, match=match):
         load_experiments(p)
+
+
+def test_thresholds_into_undecided_other_changes_and_the_companion_criterion():
+    rep = _report()
+    # x = 2: open up to 1.9, undecided from 2.2 (a threshold into undecided runs), then a
+    # change back to open between the runs at 2.5 and 3.0, which is not the threshold
+    rep["runs"][5].update(outcome="undecided", companion_outcome="undecided")
+    rep["runs"].append({**rep["runs"][3], "we_sqrt": 3.0})
+    rep["boundary"][1].update(
+        status="undecided", decided_status="all-open", threshold_low=1.9, threshold_high=2.2,
+        threshold_to="undecided", verified=True,
+        transitions=[{"low": 1.9, "high": 2.2, "outcome_low": "open",
+                      "outcome_high": "undecided"},
+                     {"low": 2.4, "high": 2.5, "outcome_low": "undecided",
+                      "outcome_high": "open"}])
+    rep.update(verify_levels=2, verify_every_level=True)
+    comp = _report()
+    comp["boundary"][0].update(we_sqrt_low=1.2, we_sqrt_high=1.3, verified=False)
+    comp.update(verify_levels=2)
+    ax = plot_phase_diagram(rep, companion=comp).axes[0]
+    labels = {c.get_label(): c for c in ax.containers}
+    ver = labels["threshold, verified (holds at every finer level) (1 line)"]
+    np.testing.assert_allclose(np.asarray(ver.lines[0].get_xdata(), float), [2.05])
+    unv = labels["threshold, NOT verified (1 line)"]
+    np.testing.assert_allclose(np.asarray(unv.lines[0].get_xdata(), float), [1.5])
+    und = _line(ax, "threshold into undecided runs, no encapsulation below (1 line)")
+    np.testing.assert_allclose([und.get_xdata(), und.get_ydata()], [[2.05], [2.0]])
+    other = _line(ax, "other outcome change on the line (1)")
+    np.testing.assert_allclose([other.get_xdata()[0], other.get_ydata()[0]], [2.75, 2.0])
+    cv = labels["frame-independent criterion: threshold, NOT verified (2 lines)"]
+    np.testing.assert_allclose(np.asarray(cv.lines[0].get_xdata(), float), [1.25, 2.05])
+    assert "every bracket at every level" in ax.get_title()
