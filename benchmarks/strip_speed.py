@@ -39,7 +39,7 @@ def run_cli(src: Path, x: float, n: int | None) -> dict:
         argv = [sys.executable, "-m", "elastocap", "branches", "fig3-strip", "--set",
                 f"drop.distance_from_end={x:g}", "--json", "--out", str(Path(tmp) / "b")]
         if n is not None:
-            argv[6:6] = ["--set", f"numerics.n_edges={n}"]
+            argv[7:7] = ["--set", f"numerics.n_edges={n}"]
         env = {**os.environ, "PYTHONPATH": str(src)}
         t = time.perf_counter()
         proc = subprocess.Popen(argv, cwd=tmp, env=env, stdout=subprocess.PIPE,

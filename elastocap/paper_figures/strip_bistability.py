@@ -88,7 +88,7 @@ def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
            "folds": [{k: f[k] for k in ("value", "kind", "node", "event", "stability_change",
                                         "encapsulated", "admissible", "error_estimate")}
                      for f in bs.folds],
-           "branches": [{k: b[k] for k in ("label", "range", "status")}
+           "branches": [{k: b[k] for k in ("label", "range", "end_status")}
                         for b in bs.summary()["branches"]],
            "wall_time_s": bs.metadata["wall_time_s"]}
     d0 = spreading.delta0

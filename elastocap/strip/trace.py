@@ -104,6 +104,7 @@ from elastocap.strip.solve import (
     Equilibrium,
     lagrangian_hessian,
     open_state,
+    refine as refine_equilibrium,
     solve_equilibrium,
     stability,
     wrapped_state,
@@ -807,13 +808,15 @@ class ContactProblem(Problem):
     (:func:`~elastocap.strip.solve.open_state`) and the fold
     (:func:`~elastocap.strip.solve.wrapped_state`), in that order (a descent that fails
     gives a non-finite seed, which the search's Newton refuses at once); none elsewhere.
-    ``deflation_indices``: u (the reactions are not measured).
+    ``only``: the (Delta, seed index) pairs to compute (the others are non-finite seeds);
+    default all. ``deflation_indices``: u (the reactions are not measured).
     """
 
     SEED_KINDS = ("deposition", "fold")
 
-    def __init__(self, strip: DiscreteStrip, seed_deltas=()):
+    def __init__(self, strip: DiscreteStrip, seed_deltas=(), only=None):
         self.strip = strip
+        self.only = None if only is None else {(round(float(d), 10), int(j)) for d, j in only}
         self.N = strip.size
         self.c = strip.B / strip.h**3
         self.rs = strip.gamma if strip.gamma > 0.0 else 1.0
@@ -869,7 +872,10 @@ class ContactProblem(Problem):
             return []
         s = self.strip.with_(delta=float(p))
         out = []
-        for seed in (open_state, wrapped_state):
+        for j, seed in enumerate((open_state, wrapped_state)):
+            if self.only is not None and (round(float(p), 10), j) not in self.only:
+                out.append(np.full(2 * self.N, np.nan))
+                continue
             eq = seed(s)
             if eq.success:
                 # polished to the round-off floor: the search's Newton accepts it as it is
@@ -1031,28 +1037,28 @@ def _label(origin, kinds) -> str:
 
 #: The generic search's settings for the strip. Samples are the seed values (and the two
 #: range ends); the seeds are the physics' two states there. Neighbour seeds (each known
-#: state tried, deflated, at the next sample) and switching are off: the fixed-set problem
-#: is generic in Delta (no branch points), and the neighbour seeds found no branch the
-#: seeds miss on x = 2, 3, n = 60 (tests/strip/test_strip_trace.py) at 3x the cost.
-SEARCH = SearchSettings(samples=0, same_tol=_SAME, neighbour_seeds=False, switch=False,
-                        max_rounds=2)
+#: state tried, deflated, at the next sample) are on: measured at n = 60, x = 2 and 3, they
+#: found no branch the seeds miss (1 and 2 branches) for +0.5 and -0.1 s CPU (6.0 and
+#: 8.8 s). Switching is off: the fixed-set problem is generic in Delta (no branch points).
+SEARCH = SearchSettings(samples=0, same_tol=_SAME, switch=False, max_rounds=3)
 
 
 def search_contact_branches(strip: DiscreteStrip, lo: float, hi: float, progress=None,
-                            settings: SearchSettings = SEARCH):
+                            settings: SearchSettings = SEARCH, only=None, starts=()):
     """Every branch of ``strip`` over lo <= Delta <= hi reached by the generic search.
 
     :class:`continuation.BranchSearch` on :class:`ContactProblem` with the continuer
     :func:`continue_contact_branch`: seeds at ``SEED_DELTAS`` inside the range (its
     midpoint if none), each deflated against the states known there (the crossings of every
     branch already traced, recorded at each seed value), new ones continued both ways.
-    Returns (branches, labels, search result).
+    ``only`` limits the seeds (:class:`ContactProblem`); ``starts`` (v, Delta) are
+    continued first. Returns (branches, labels, search result).
     """
     grid = tuple(d for d in SEED_DELTAS if lo < d < hi) or (0.5 * (lo + hi),)
-    prob = ContactProblem(strip, grid)
+    prob = ContactProblem(strip, grid, only)
     cont = ContinuationSettings(**{**DEFAULTS, "max_steps": _MAX_STEPS, "p_min": lo,
                                    "p_max": hi})
-    search = BranchSearch(prob, cont, settings.replace(sample_values=grid),
+    search = BranchSearch(prob, cont, settings.replace(sample_values=grid), starts=starts,
                           parameter="drop.wetted_length", continuer=continue_contact_branch)
     labels = []
     for br in search:
@@ -1201,12 +1207,41 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
     return {"value": end, "how": how, "label": labels[k]}
 
 
-def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None) -> dict:
-    branches, labels, res = search_contact_branches(strip, lo, hi, progress)
+def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
+    """The seeds and starts that make the branches of the analysis ``coarse`` at the
+    resolution of ``strip``: the same seeds (Delta, kind) where a seed made a branch; the
+    other branches' first states carried to ``strip`` by :func:`~elastocap.strip.solve.
+    refine` (identity kept)."""
+    only, starts = set(), []
+    cprob = coarse["problem"]
+    fine = ContactProblem(strip)
+    for o, br in zip(coarse["search"].origins, coarse["branches"], strict=True):
+        if o["how"] == "seed":
+            only.add((o["p"], o["seed"]))
+            continue
+        i = int(br.metadata["start_index"])
+        d = float(br.p[i])
+        cs = cprob.strip.with_(delta=d)
+        u, _r = cprob.split(br.u[i])
+        eq = solve_equilibrium(cs, u, active=cprob.held(br.u[i], d), tol=_POLISH)
+        if eq.success:
+            eq = refine_equilibrium(cs, eq, strip.with_(delta=d))
+        if eq.success:
+            starts.append((fine.join(eq.u, np.where(eq.active, eq.reactions, 0.0)), d))
+    return {"only": only, "starts": starts}
+
+
+def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=None) -> dict:
+    """Search, then the special points, kind changes, window and open branch's end.
+    ``follow`` (another resolution's analysis): trace the same branches, seeded as there,
+    instead of every seed (:func:`_follow`)."""
+    kw = _follow(follow, strip) if follow is not None else {}
+    branches, labels, res = search_contact_branches(strip, lo, hi, progress, **kw)
     folds = _fold_list(strip, branches, labels)
     kinds = _kind_changes(strip, branches, labels)
     window = _window(branches, folds, kinds)
     return {"branches": branches, "labels": labels, "search": res, "folds": folds,
+            "problem": ContactProblem(strip),
             "kind_changes": kinds, "window": window, "events": _event_list(branches, labels),
             "open_branch_end": _open_end(branches, labels, folds, kinds)}
 
@@ -1233,7 +1268,9 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         Edges; default the scene's impact resolution (``numerics.n_edges`` or the accuracy
         preset's).
     refine : bool
-        Repeat at ``REFINE`` n edges for the error estimates (about 2-3x the time).
+        Trace the same branches again at ``REFINE`` n edges for the error estimates: seeded
+        by the seeds that made a branch at n (the others are not tried again), the other
+        branches' first states carried to the finer strip.
     progress : callable(message), optional
         Called with a line after each branch is traced.
     n_refined : int, optional
@@ -1259,7 +1296,7 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
             if n_fine == strip.n:
                 raise ValueError(f"n_refined: got {n_fine}; expected it to differ from n = "
                                  f"{strip.n}")
-            f = _analyse(strip.with_(n=n_fine), lo, hi, progress)
+            f = _analyse(strip.with_(n=n_fine), lo, hi, progress, follow=a)
             fend = f["open_branch_end"]
             end["value_refined"], end["how_refined"] = fend["value"], fend["how"]
             if end["value"] is not None and fend["value"] is not None:
