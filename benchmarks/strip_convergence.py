@@ -74,12 +74,12 @@ def main():
             t = time.perf_counter()
             bs = trace_contact_branches(sc, prange=(0.5, min(2.2, 1.95 * x)), n=n,
                                         refine=False)
-            w = bs.window
+            w = bs.results["window"]
             run = {"x": x, "n": n, "wall_time_s": time.perf_counter() - t,
                    "deposition_end": open_branch_end(bs),
                    "open_max": w["open_max"], "encapsulated_min": w["encapsulated_min"],
                    "bistable": w["bistable"], "width": w["width"],
-                   "branches": [{k: b[k] for k in ("label", "range", "status")}
+                   "branches": [{k: b[k] for k in ("label", "range", "end_status")}
                                 for b in bs.summary()["branches"]],
                    "folds": [{k: f[k] for k in ("value", "kind", "stability_change",
                                                 "encapsulated", "admissible", "branch")}

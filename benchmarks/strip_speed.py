@@ -1,17 +1,19 @@
-"""Speed of `elastocap branches fig3-strip` (every branch, every contact topology).
+"""Speed of `elastocap branches fig3-strip --set drop.distance_from_end=X`, side by side.
 
-    python3 benchmarks/strip_speed.py [--x 2] [--n N] [--no-refine] [--profile]
-                                      [--baseline SRC]
+    python3 benchmarks/strip_speed.py [--x 2] [--n N] [--repeat 3] [--baseline SRC]
+                                      [--profile]
 
-Times :func:`elastocap.strip.trace.trace_contact_branches` at the scene's default resolution
-(n = 198 edges, refined run at 1.5 n for the error estimates) for each drop position x, as
-`elastocap branches fig3-strip --set drop.distance_from_end=X` runs it, and prints the wall
-time and the CPU time of the process (on a shared machine the CPU time is the comparable
-number), the number of continuation steps, of contact events and the window with its error
-estimate. ``--profile`` prints the 25 most expensive functions (cProfile, cumulative).
-``--baseline SRC`` also runs the same trace from another source tree (e.g. ``git archive
-main elastocap continuation dynamics | tar -x -C /tmp/base``) in a subprocess at the same
-time, and prints the ratios of the CPU and wall times.
+Runs the command itself (``python -m elastocap branches fig3-strip --set
+drop.distance_from_end=X [--set numerics.n_edges=N] --json --out TMP``; default resolution:
+n = 198 edges, refined at 297 for the error estimates) in a child process, ``--repeat``
+times, and prints for each run its CPU time (user + system of the child, from
+``os.wait4``: on a shared, loaded machine the comparable number) and its wall time, then
+the medians. With ``--baseline SRC`` (another source tree, e.g. ``git archive main
+elastocap continuation dynamics | tar -x -C /tmp/base``) the runs of the two trees
+alternate (this tree, the baseline, this tree, ...), and the medians of both and their
+ratios (baseline / this tree) are printed, with the window each computed.
+``--profile`` runs the trace once in this process under cProfile instead and prints the
+25 most expensive functions (cumulative).
 """
 
 from __future__ import annotations
@@ -21,79 +23,88 @@ import cProfile
 import json
 import os
 import pstats
+import statistics
 import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
-from elastocap.scene import load_scene
-from elastocap.strip.trace import trace_contact_branches
-
-_ONE = """
-import json, sys, time
-from elastocap.scene import load_scene
-try:
-    from elastocap.strip.trace import trace_contact_branches
-except ImportError:
-    from elastocap.strip.contact_branches import trace_contact_branches
-x, n, refine = float(sys.argv[1]), sys.argv[2], sys.argv[3] == "1"
-sc = load_scene("fig3-strip", {"drop.distance_from_end": x})
-t, c = time.perf_counter(), time.process_time()
-bs = trace_contact_branches(sc, n=None if n == "None" else int(n), refine=refine)
-w = bs.window
-print(json.dumps({"wall": time.perf_counter() - t, "cpu": time.process_time() - c,
-                  "open_max": w["open_max"]["value"],
-                  "encapsulated_min": w["encapsulated_min"]["value"]}))
-"""
+HERE = Path(__file__).resolve().parents[1]
 
 
-def baseline(src, x, n, refine):
-    """The same trace from the source tree ``src`` in a subprocess (started now)."""
-    env = {**os.environ, "PYTHONPATH": os.path.abspath(src)}
-    return subprocess.Popen([sys.executable, "-c", _ONE, str(x), str(n), "1" if refine else "0"],
-                            env=env, cwd="/", stdout=subprocess.PIPE, text=True)
+def run_cli(src: Path, x: float, n: int | None) -> dict:
+    """One run of the command from source tree ``src``: cpu, wall (s) and the window."""
+    with tempfile.TemporaryDirectory(prefix="strip-speed-") as tmp:
+        argv = [sys.executable, "-m", "elastocap", "branches", "fig3-strip", "--set",
+                f"drop.distance_from_end={x:g}", "--json", "--out", str(Path(tmp) / "b")]
+        if n is not None:
+            argv[7:7] = ["--set", f"numerics.n_edges={n}"]
+        env = {**os.environ, "PYTHONPATH": str(src)}
+        t = time.perf_counter()
+        proc = subprocess.Popen(argv, cwd=tmp, env=env, stdout=subprocess.PIPE,
+                                stderr=subprocess.DEVNULL, text=True)
+        out = proc.stdout.read()
+        _pid, status, ru = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t
+        proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise SystemExit(f"{src}: the command failed (exit {proc.returncode})")
+    rep = json.loads(out)
+    w = rep["window"]
+    return {"cpu": ru.ru_utime + ru.ru_stime, "wall": wall,
+            "open_max": w["open_max"]["value"], "open_max_err": w["open_max"]["error_estimate"],
+            "encapsulated_min": w["encapsulated_min"]["value"]}
 
 
-def run(x, n=None, refine=True):
-    sc = load_scene("fig3-strip", {"drop.distance_from_end": float(x)})
-    t, c = time.perf_counter(), time.process_time()
-    bs = trace_contact_branches(sc, n=n, refine=refine)
-    wall, cpu = time.perf_counter() - t, time.process_time() - c
-    steps = sum(len(s.delta) for br in bs.branches for s in br.segments)
-    w = bs.window
-    print(f"x = {x:g}: n = {bs.n} (refined {bs.metadata['n_edges_refined']}), "
-          f"{len(bs.branches)} traced directions, {steps} points, {len(bs.events)} events, "
-          f"{wall:.1f} s wall, {cpu:.1f} s CPU; open_max {w['open_max']['value']} ± "
-          f"{w['open_max']['error_estimate']:.2g}, encapsulated_min "
-          f"{w['encapsulated_min']['value']} ± {w['encapsulated_min']['error_estimate']:.2g}",
-          flush=True)
-    return wall, cpu
+def _line(name, r):
+    return (f"  {name:10s} {r['cpu']:8.1f} s CPU {r['wall']:8.1f} s wall   open_max "
+            f"{r['open_max']}  encapsulated_min {r['encapsulated_min']}")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--x", type=float, nargs="+", default=[2.0])
     ap.add_argument("--n", type=int, default=None)
-    ap.add_argument("--no-refine", action="store_true")
-    ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--baseline", metavar="SRC", default=None)
+    ap.add_argument("--profile", action="store_true")
     a = ap.parse_args()
-    for x in a.x:
-        if a.baseline:
-            proc = baseline(a.baseline, x, a.n, not a.no_refine)
-            wall, cpu = run(x, a.n, not a.no_refine)
-            b = json.loads(proc.communicate()[0].strip().splitlines()[-1])
-            print(f"  baseline ({a.baseline}): {b['wall']:.1f} s wall, {b['cpu']:.1f} s CPU, "
-                  f"open_max {b['open_max']}, encapsulated_min {b['encapsulated_min']}; "
-                  f"speed-up {b['cpu'] / cpu:.2f}x CPU, {b['wall'] / wall:.2f}x wall",
-                  flush=True)
-        elif a.profile:
+    if a.profile:
+        from elastocap.scene import load_scene
+        from elastocap.strip.trace import trace_contact_branches
+
+        for x in a.x:
+            sc = load_scene("fig3-strip", {"drop.distance_from_end": x})
             pr = cProfile.Profile()
+            c = time.process_time()
             pr.enable()
-            run(x, a.n, not a.no_refine)
+            trace_contact_branches(sc, n=a.n)
             pr.disable()
+            print(f"x = {x:g}: {time.process_time() - c:.1f} s CPU (with the profiler)")
             pstats.Stats(pr, stream=sys.stdout).sort_stats("cumulative").print_stats(25)
-        else:
-            run(x, a.n, not a.no_refine)
+        return
+    trees = [("this tree", HERE)]
+    if a.baseline:
+        trees.append(("baseline", Path(a.baseline).resolve()))
+    for x in a.x:
+        print(f"x = {x:g}, n = {a.n or 'default (198, refined at 297)'}: "
+              f"{a.repeat} runs per tree, alternating", flush=True)
+        runs = {name: [] for name, _ in trees}
+        for _k in range(a.repeat):
+            for name, src in trees:
+                r = run_cli(src, x, a.n)
+                runs[name].append(r)
+                print(_line(name, r), flush=True)
+        med = {name: {k: statistics.median(r[k] for r in rs) for k in ("cpu", "wall")}
+               for name, rs in runs.items()}
+        for name in runs:
+            print(f"  median {name}: {med[name]['cpu']:.1f} s CPU, {med[name]['wall']:.1f} s "
+                  "wall")
+        if a.baseline:
+            m0, m1 = med["this tree"], med["baseline"]
+            print(f"  ratio baseline / this tree: {m1['cpu'] / m0['cpu']:.2f}x CPU, "
+                  f"{m1['wall'] / m0['wall']:.2f}x wall", flush=True)
 
 
 if __name__ == "__main__":

@@ -468,6 +468,15 @@ class BranchSearch:
         Name of ``p`` recorded in every branch (``Branch.parameter``).
     accept : callable ``(u, p) -> bool``, optional
         A solution for which it returns False is not continued (e.g. outside the domain).
+    continuer : callable, optional
+        How a solution becomes a branch: ``continuer(problem, u, p, settings, events=...,
+        stop_on=...) -> Branch``, called with the search's continuation settings
+        (``direction`` 0: both ways) wherever the search continues a start or a new
+        solution. Default :func:`continue_branch`. A problem that is smooth only piecewise
+        (e.g. a complementarity residual ``min(a, b)`` whose pieces are continued one at a
+        time and joined where the active piece changes) supplies its own; the branch it
+        returns must store its states (``u``) in the problem's unknowns, so that recording,
+        deflation and the duplicate test work on it as on any branch.
 
     Examples
     --------
@@ -495,6 +504,7 @@ class BranchSearch:
         stop_on=(),
         parameter: str = "p",
         accept: Callable | None = None,
+        continuer: Callable | None = None,
     ):
         if not isinstance(continuation, ContinuationSettings):
             raise TypeError("continuation: expected ContinuationSettings; got "
@@ -514,6 +524,7 @@ class BranchSearch:
         self.stop_on = tuple(stop_on)
         self.parameter = parameter
         self.accept = accept
+        self.continuer = continue_branch if continuer is None else continuer
         self.indices = getattr(problem, "deflation_indices", None)
         s = self.settings
         lo, hi = self.cont.p_min, self.cont.p_max
@@ -589,8 +600,8 @@ class BranchSearch:
     def _continue(self, u, p, origin) -> Branch | None:
         if self.accept is not None and not self.accept(u, p):
             return None
-        br = continue_branch(self.problem, u, p, self.cont, events=self.events,
-                             stop_on=self.stop_on)
+        br = self.continuer(self.problem, u, p, self.cont, events=self.events,
+                            stop_on=self.stop_on)
         return self._add(br, origin)
 
     def _add(self, br: Branch, origin) -> Branch | None:

@@ -26,7 +26,7 @@ _API = {
     "SceneError": "elastocap.scene",
     "trace_branches": "elastocap.statics.branches",
     "find_folds": "elastocap.statics.branches",
-    "BranchSet": "elastocap.statics.branches",
+    "BranchSet": "elastocap.branchset",
     "run_impact": "elastocap.impact",
     "run_overlay": "elastocap.overlay",
     "run_sweep": "elastocap.sweep.engine",

@@ -114,10 +114,8 @@ def _trace(args, scene=None, progress=None, step=(0, 0)):
             # the strip on the ground: one model (the discrete strip, every contact topology)
             from elastocap.strip.trace import trace_contact_branches
 
-            def traced(label, br):
-                progress(*step, f"traced {label}: {len(br.segments)} segments, {br.status}")
-
-            return trace_contact_branches(scene, args.param, prange, progress=traced)
+            return trace_contact_branches(scene, args.param, prange,
+                                          progress=lambda line: progress(*step, line))
         return trace_branches(scene, args.param, prange)
 
 
@@ -127,41 +125,7 @@ def _fold_report(bs) -> dict:
 
 
 def _print_folds(bs) -> None:
-    if hasattr(bs, "report_lines"):
-        print("\n".join(bs.report_lines()))
-        return
-    print(
-        f"{bs.scene.name}: {len(bs.branches)} branches in {bs.parameter} over "
-        f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (N={bs.metadata['N']}, "
-        f"{bs.metadata['wall_time_s']:.2f} s)"
-    )
-    note = bs.metadata.get("range_note")
-    if note:
-        print(f"  note: {note}")
-    for f in bs.folds:
-        err = f.get("error_estimate")
-        err = "(not estimated)" if err is None else f"± {err:.1e}"
-        print(
-            f"  fold          {f['value']:.12f}  {err}  measure "
-            f"{f['measure']:+.6f}  stability {f['stability_change']}"
-        )
-    for b in bs.branch_points:
-        print(
-            f"  branch point  {b['value']:.12f}            measure {b['measure']:+.6f}  "
-            f"stability {b['stability_change']}"
-        )
-    for m in bs.maxwell_points:
-        print(
-            f"  equal energy  {m['value']:.12f}            measures "
-            + ", ".join(f"{v:+.6f}" for v in m["measures"])
-        )
-    for e in getattr(bs, "endpoints", []):
-        if e.get("kind") == "admissible_boundary":
-            print(f"  branch end    {e['value']:.12f}            on the admissible boundary: "
-                  f"{e['reason']}")
-    for u in getattr(bs, "unlocated", []):
-        print(f"  NOT LOCATED   {u['kind']} near {u['value']:.6g}: {u['reason']}; "
-              f"{u['what_to_try']}")
+    print(bs.report())
 
 
 def _trace_or_fail(args, scene=None, progress=None, step=(0, 0)):
@@ -176,9 +140,6 @@ def _trace_or_fail(args, scene=None, progress=None, step=(0, 0)):
 
 
 def cmd_branches(args) -> int:
-    from elastocap.statics.branches import BranchSet
-    from elastocap.statics.plot import plot_branch_set
-
     scene = _load(args)
     folder = _out_folder(args, f"branches-{scene.name}", "branches")
     progress = _progress(args, "branches")
@@ -186,17 +147,8 @@ def cmd_branches(args) -> int:
     if bs is None:
         return 1
     progress(1, 2, f"{len(bs.branches)} branches traced; writing the files and the figure")
-    if isinstance(bs, BranchSet):
-        paths = bs.save(folder)
-    else:  # the strip's branch sets write their own files: staged, then moved in
-        with folder.staged() as stage:
-            bs.save(stage)
-        paths = [p for p in folder.files if p.name != "branches.png"]
-    if type(bs).__name__ == "ContactBranchSet":
-        from elastocap.strip.plot import plot_contact_branch_set as plot
-    else:
-        plot = plot_branch_set
-    paths.append(folder.savefig(lambda path: plot(bs, path), "branches.png"))
+    paths = bs.save(folder)
+    paths.append(folder.savefig(lambda path: bs.plot(path), "branches.png"))
     progress(2, 2, "done")
     progress.close()
     out = folder.path
@@ -581,14 +533,13 @@ def cmd_plot(args) -> int:
         )
     folder = OutputFolder(args.out or src.parent, f"plot-{kind}-{src.stem}")
     if kind == "branches":
-        from elastocap.statics.branches import BranchSet
-        from elastocap.statics.plot import plot_branch_set
+        from elastocap.branchset import BranchSet
 
         try:
             bs = BranchSet.load(src)
         except ValueError as err:
             raise UsageError(f"PATH: {err}") from None
-        png = folder.savefig(lambda p: plot_branch_set(bs, p), "branches.png")
+        png = folder.savefig(lambda p: bs.plot(p), "branches.png")
         info = {"kind": kind, "scene": bs.scene.name, "branches": len(bs.branches)}
     elif kind == "impact":
         from elastocap.frames import frame_strip

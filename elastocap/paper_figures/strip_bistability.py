@@ -82,13 +82,13 @@ def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
     lands on, traced up from the deposition at Delta = 0.6, stops existing or being stable,
     :func:`elastocap.strip.trace.open_branch_end`); ``folds``: the located folds at the
     coarse resolution; ``wall_time_s``."""
-    w = bs.window
+    w = bs.results["window"]
     lo, hi = bs.prange
-    row = {"x": float(x), "n": [bs.n, bs.metadata["n_edges_refined"]],
+    row = {"x": float(x), "n": [bs.metadata["n_edges"], bs.metadata["n_edges_refined"]],
            "folds": [{k: f[k] for k in ("value", "kind", "node", "event", "stability_change",
                                         "encapsulated", "admissible", "error_estimate")}
                      for f in bs.folds],
-           "branches": [{k: b[k] for k in ("label", "range", "status")}
+           "branches": [{k: b[k] for k in ("label", "range", "end_status")}
                         for b in bs.summary()["branches"]],
            "wall_time_s": bs.metadata["wall_time_s"]}
     d0 = spreading.delta0

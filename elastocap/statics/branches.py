@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import brentq
@@ -33,7 +32,7 @@ from continuation import (
     locate_fold,
 )
 from elastocap._version import __version__
-from elastocap.jsonutil import jsonable
+from elastocap.branchset import BranchModel, BranchSet
 from elastocap.scene import Scene, SceneError
 from elastocap.statics.wet_elastica import PARAMETERS, WetElasticaProblem
 
@@ -173,150 +172,48 @@ def admissible_range(scene: Scene, parameter: str) -> tuple[float, float, str, s
     return 0.0, math.inf, f"{parameter} = 0", ""
 
 
-@dataclass
-class BranchSet:
-    """All branches of a scene in one parameter, with their special points.
+def _rebuild_problem(scene: Scene, meta: dict) -> WetElasticaProblem:
+    return problem_for(scene, meta["parameter"], meta["N"], meta["nodes"])
 
-    Attributes
-    ----------
-    branches : list of continuation.Branch
-    labels : list of str
-        One per branch: ``"primary"`` (through the nearly flat state), or ``"branch k"``.
-    folds : list of dict
-        Every located, transversal limit point: value, measure, energy, stability_change,
-        error_estimate (a number; None only with ``error_estimates=False``),
-        transversality, branch.
-    unlocated : list of dict
-        Special points that could not be located or confirmed: kind, value (the bracket's
-        best value), measure, branch, reason, what_to_try. Never reported as folds.
-    branch_points, maxwell_points, endpoints : list of dict
-        Endpoints have a ``kind``: ``admissible_boundary`` (the reason names it, e.g.
-        "S2 = L"), ``range_end``, ``contact_lines_meet`` or ``endpoint``.
-    metadata : dict
-        Scene (resolved TOML data), parameter, range, N, nodes, tolerances, version, timing.
-    """
 
-    scene: Scene
-    parameter: str
-    prange: tuple[float, float]
-    problem: WetElasticaProblem
-    branches: list = field(default_factory=list)
-    labels: list = field(default_factory=list)
-    folds: list = field(default_factory=list)
-    branch_points: list = field(default_factory=list)
-    maxwell_points: list = field(default_factory=list)
-    admissibility_changes: list = field(default_factory=list)
-    endpoints: list = field(default_factory=list)
-    metadata: dict = field(default_factory=dict)
-    unlocated: list = field(default_factory=list)
+def _plot(bs, path=None):
+    from elastocap.statics.plot import plot_branch_set
 
-    def summary(self) -> dict:
-        """Plain data for ``--json``: special points by kind and one line per branch."""
-        return {
-            "scene": self.scene.name,
-            "parameter": self.parameter,
-            "range": list(self.prange),
-            "folds": self.folds,
-            "branch_points": self.branch_points,
-            "maxwell_points": self.maxwell_points,
-            "admissibility_changes": self.admissibility_changes,
-            "endpoints": self.endpoints,
-            "unlocated": self.unlocated,
-            "branches": [
-                {
-                    "label": lab,
-                    "points": len(br),
-                    "range": [float(br.p.min()), float(br.p.max())] if len(br) else None,
-                    "stable_points": int(np.sum(br.stability == 0)),
-                    "status": br.status,
-                    "message": br.message,
-                }
-                for br, lab in zip(self.branches, self.labels, strict=True)
-            ],
-            "metadata": self.metadata,
-        }
+    return plot_branch_set(bs, path)
 
-    #: ``format`` of the ``branches.json`` that :meth:`save` writes and :meth:`load` reads.
-    FORMAT = "elastocap.statics.BranchSet/1"
 
-    def save(self, out_dir) -> list:
-        """Write ``branch_K.npz`` (+ ``branch_K.json``) per branch and ``branches.json``.
+def report_lines(bs) -> list[str]:
+    """The free rod's report: one line per located fold, branch point, equal-energy point,
+    end on the admissible boundary and unlocated point."""
+    out = [f"{bs.scene.name}: {len(bs.branches)} branches in {bs.parameter} over "
+           f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (N={bs.metadata['N']}, "
+           f"{bs.metadata['wall_time_s']:.2f} s)"]
+    note = bs.metadata.get("range_note")
+    if note:
+        out.append(f"  note: {note}")
+    for f in bs.folds:
+        err = f.get("error_estimate")
+        err = "(not estimated)" if err is None else f"± {err:.1e}"
+        out.append(f"  fold          {f['value']:.12f}  {err}  measure "
+                   f"{f['measure']:+.6f}  stability {f['stability_change']}")
+    for b in bs.branch_points:
+        out.append(f"  branch point  {b['value']:.12f}            measure {b['measure']:+.6f}  "
+                   f"stability {b['stability_change']}")
+    for m in bs.maxwell_points:
+        out.append(f"  equal energy  {m['value']:.12f}            measures "
+                   + ", ".join(f"{v:+.6f}" for v in m["measures"]))
+    for e in bs.endpoints:
+        if e.get("kind") == "admissible_boundary":
+            out.append(f"  branch end    {e['value']:.12f}            on the admissible "
+                       f"boundary: {e['reason']}")
+    for u in bs.unlocated:
+        out.append(f"  NOT LOCATED   {u['kind']} near {u['value']:.6g}: {u['reason']}; "
+                   f"{u['what_to_try']}")
+    return out
 
-        ``out_dir`` is a folder path or an :class:`elastocap.io.OutputFolder`. Every file is
-        written atomically; the folder's earlier branch files are removed first (only those
-        an earlier save listed), so no stale ``branch_K`` survives a run with fewer branches.
-        The branches record their parameter by its scene key (e.g. ``drop.wetted_length``).
-        Returns the paths written.
-        """
-        import json
-        from dataclasses import replace
 
-        from elastocap.io import OutputFolder
-
-        folder = out_dir if isinstance(out_dir, OutputFolder) else OutputFolder(
-            out_dir, "branches", key="out_dir")
-        paths = []
-        files = []
-        with folder.staged() as stage:
-            for k, br in enumerate(self.branches):
-                meta = {**br.metadata, "label": self.labels[k], "scene": self.scene.data,
-                        "statics": self.metadata}
-                br.metadata.update(meta)
-                replace(br, parameter=self.parameter, metadata=meta).save(
-                    stage / f"branch_{k}.npz")
-                files.append(f"branch_{k}.npz")
-            summary = self.summary()
-            summary["format"] = self.FORMAT
-            for line, name in zip(summary["branches"], files, strict=True):
-                line["file"] = name
-            (stage / "branches.json").write_text(
-                json.dumps(jsonable(summary), indent=2), encoding="utf-8")
-        paths = [folder.final(stage / f) for f in files] + [folder.final(stage / "branches.json")]
-        return paths
-
-    @classmethod
-    def load(cls, folder) -> BranchSet:
-        """Read a branch set written by :meth:`save` (no recomputation: the scene, the
-        discretization and every branch and special point come from the files).
-
-        Raises ValueError naming the file when the folder is not a complete free-rod branch
-        set (e.g. a strip's contact branch set, or a missing ``branch_K.npz``).
-        """
-        import json
-        from pathlib import Path
-
-        from elastocap.scene import build_scene
-
-        root = Path(folder)
-        js = root / "branches.json" if root.is_dir() else root
-        root = js.parent
-        try:
-            data = json.loads(js.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ValueError(f"{str(js)!r}: no such file (a branches folder has "
-                             "branches.json)") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-            raise ValueError(f"{str(js)!r}: not a readable branches.json ({err})") from None
-        if not isinstance(data, dict) or data.get("format") != cls.FORMAT:
-            what = ("a strip's contact branch set" if isinstance(data, dict) and "solver" in data
-                    else "not a free-rod branch set")
-            raise ValueError(f"{str(js)!r}: {what}; BranchSet.load reads the branches.json "
-                             f"of a free-rod trace (format {cls.FORMAT!r})")
-        meta = data["metadata"]
-        scene = build_scene(meta["scene"], meta["scene_name"])
-        problem = problem_for(scene, meta["parameter"], meta["N"], meta["nodes"])
-        bs = cls(scene, meta["parameter"], tuple(meta["range"]), problem)
-        for line in data["branches"]:
-            path = root / line["file"]
-            if not path.is_file():
-                raise ValueError(f"{str(path)!r}: missing (listed in {str(js)!r})")
-            bs.branches.append(Branch.load(path))
-            bs.labels.append(line["label"])
-        for key in ("folds", "branch_points", "maxwell_points", "admissibility_changes",
-                    "endpoints", "unlocated"):
-            setattr(bs, key, data.get(key, []))
-        bs.metadata = meta
-        return bs
+#: The free rod as a model of :class:`elastocap.branchset.BranchSet`.
+FREE_ROD = BranchModel("free_rod", _rebuild_problem, _plot, report_lines)
 
 
 def _settings(scene: Scene, lo: float, hi: float, span: float) -> ContinuationSettings:
@@ -507,6 +404,7 @@ def trace_branches(
                              and k == 0 else f"branch {k}")
     _collect_special_points(result, error_estimates, (lo_name, hi_name))
     result.metadata = {
+        "model": "free_rod",
         "scene": scene.data,
         "scene_name": scene.name,
         "parameter": parameter,

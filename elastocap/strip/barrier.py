@@ -395,16 +395,16 @@ def equilibria_at(bs, delta: float) -> list[tuple[int, Equilibrium]]:
     if not lo <= delta <= hi:
         raise ValueError(f"delta: got {delta}; expected it inside the traced range "
                          f"[{lo}, {hi}]")
-    strip = discrete_strip_for(bs.scene, bs.n).with_(delta=float(delta))
+    strip = discrete_strip_for(bs.scene, bs.metadata["n_edges"]).with_(delta=float(delta))
     found: list[tuple[int, Equilibrium]] = []
-    for seg, j, eq in solved_crossings(strip, bs.branches):
+    for br, j, eq in solved_crossings(strip, bs.branches):
         if eq.success and not any(np.max(np.abs(eq.u - e.u)) < _SAME for _, e in found):
             # the index of the solved state itself: Newton from a point next to a fold can
             # land on the other side of it (measured at x = 4, Delta = 1.1: the saddle,
             # found from a point of the open branch); with a contact of zero reaction the
             # fixed-set index of the segment is kept
             idx, weak = stability(strip, eq)
-            found.append((int(seg.index[j]) if weak else idx, eq))
+            found.append((int(br.stability[j]) if weak else idx, eq))
     return sorted(found, key=lambda t: t[1].energy)
 
 
@@ -486,14 +486,15 @@ def lowest_barriers(energies_min, encapsulated, saddles) -> list[dict]:
 def barrier_graph(bs, delta: float) -> BarrierGraph:
     """Minima, saddles and the lowest barrier of each open minimum at ``delta``.
 
-    ``bs`` is a :class:`~elastocap.strip.trace.ContactBranchSet`; one BLAS thread (scoped).
+    ``bs`` is a strip's :class:`~elastocap.branchset.BranchSet`; one BLAS thread (scoped).
     """
     with threadpool_limits(limits=1, user_api="blas"):
         return _barrier_graph(bs, delta)
 
 
 def _barrier_graph(bs, delta):
-    strip: DiscreteStrip = discrete_strip_for(bs.scene, bs.n).with_(delta=float(delta))
+    strip: DiscreteStrip = discrete_strip_for(bs.scene, bs.metadata["n_edges"]).with_(
+        delta=float(delta))
     eqs = equilibria_at(bs, delta)
     minima = [eq for idx, eq in eqs if idx == 0]
     from_descent = [False] * len(minima)

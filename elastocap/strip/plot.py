@@ -12,7 +12,7 @@ __all__ = ["plot_contact_branch_set"]
 
 
 def plot_contact_branch_set(bs, path=None, insets=3):
-    """Branches of a :class:`~elastocap.strip.trace.ContactBranchSet`.
+    """Branches of a strip's :class:`~elastocap.branchset.BranchSet`.
 
     Left: energy above the flat state against Delta (solid stable, dashed unstable, grey
     where the strip crosses itself or the interface crosses it), smooth folds (x), contact
@@ -28,12 +28,13 @@ def plot_contact_branch_set(bs, path=None, insets=3):
     gs = fig.add_gridspec(2, 2, height_ratios=[3, 2])
     ax, am, axs = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[0, 1]), \
         fig.add_subplot(gs[1, :])
-    for b, pts in enumerate(bs.points):
-        d = pts["delta"]
+    n = bs.metadata["n_edges"]
+    for b, br in enumerate(bs.branches):
+        d, pts = br.p, br.observables
         if not d.size:
             continue
         col = f"C{b % 10}"
-        stable = pts["index"] == 0
+        stable = br.stability == 0
         ok = pts["admissible"] == 1.0
         for a, key in ((ax, "energy_above_flat"), (am, "measure")):
             y = pts[key]
@@ -44,7 +45,7 @@ def plot_contact_branch_set(bs, path=None, insets=3):
         mk = "kx" if f["kind"] == "smooth" else "ko"
         ax.plot(f["value"], f["energy"] - _flat(bs, f["value"]), mk, mfc="none", ms=5)
         am.plot(f["value"], f["measure"], mk, mfc="none", ms=5)
-    w = bs.window
+    w = bs.results.get("window", {})
     for key, ls in (("open_max", "-."), ("encapsulated_min", ":")):
         v = (w.get(key) or {}).get("value")
         if v is not None:
@@ -55,9 +56,9 @@ def plot_contact_branch_set(bs, path=None, insets=3):
     ax.set_xlabel(r"wetted length $\Delta$")
     ax.set_ylabel(r"$E - E_\mathrm{flat}$")
     fig.suptitle(f"{bs.scene.name}, " + r"$x$" + f" = {bs.scene.distance_from_end:g}, "
-                 + r"$n$" + f" = {bs.n} edges", fontsize=9)
+                 + r"$n$" + f" = {n} edges", fontsize=9)
     handles = [Line2D([], [], color=f"C{b % 10}", label=bs.labels[b].replace("Delta", "Δ"))
-               for b, pts in enumerate(bs.points) if pts["delta"].size]
+               for b, br in enumerate(bs.branches) if len(br)]
     handles += [Line2D([], [], color="k", ls="-", label="stable"),
                 Line2D([], [], color="k", ls="--", label="unstable"),
                 Line2D([], [], color="0.6", ls=":", label="inadmissible (crossing)")]
@@ -76,12 +77,11 @@ def plot_contact_branch_set(bs, path=None, insets=3):
     am.set_ylabel(r"$\theta(L)/\pi$")
     am.set_title(f"stable open up to Δ = {_fmt(w, 'open_max')}, stable encapsulated from "
                  f"Δ = {_fmt(w, 'encapsulated_min')}", fontsize=8)
-    strip = discrete_strip_for(bs.scene, bs.n)
+    strip = discrete_strip_for(bs.scene, n)
     for b, br in enumerate(bs.branches):
-        U = [u for s in br.segments for u in s.u]
-        D = [d for s in br.segments for d in s.delta]
-        for i in np.linspace(0, len(U) - 1, min(insets, len(U))).astype(int):
-            X, iface, _d = strip_and_interface(strip.with_(delta=float(D[i])), U[i])
+        for i in np.linspace(0, len(br) - 1, min(insets, len(br))).astype(int):
+            X, iface, _d = strip_and_interface(strip.with_(delta=float(br.p[i])),
+                                               br.u[i][: strip.size])
             axs.plot(X[:, 0], X[:, 1], color=f"C{b % 10}", lw=0.8)
             axs.plot(iface[:, 0], iface[:, 1], color="tab:blue", lw=0.5)
     axs.axhline(0.0, color="0.5", lw=0.8)

@@ -6,12 +6,17 @@ the part lying on the ground, the lift-off point, a free end touching down again
 drop's footprint resting on the ground are all contact sets of the same problem, so no
 topology is excluded.
 
-Search (:func:`trace_contact_branches`)
-    At each of ``SEED_DELTAS`` inside the range, two seeds: a quasi-static deposition
-    (descent from the flat strip, :func:`~elastocap.strip.solve.open_state`) and the strip
-    folded over the drop (:func:`~elastocap.strip.solve.wrapped_state`). A seed that lies on
-    a branch already traced is skipped (Newton at the seed's Delta from the nearest traced
-    point of the same contact set lands on it to ``_SAME``).
+Search (:func:`trace_contact_branches`, :func:`search_contact_branches`)
+    The generic deflated search :class:`continuation.BranchSearch` on
+    :class:`ContactProblem`: the strip as one fixed-size semismooth problem (state and one
+    reaction per node, complementarity as min(r, c z) = 0), whose seeds at each of
+    ``SEED_DELTAS`` inside the range are a quasi-static deposition (descent from the flat
+    strip, :func:`~elastocap.strip.solve.open_state`) and the strip folded over the drop
+    (:func:`~elastocap.strip.solve.wrapped_state`). Each seed is Newton-solved deflated
+    against the states known at its Delta (the recorded crossings of every branch traced so
+    far), so a seed on a traced branch is not traced again; a new one is continued both
+    ways by the search's continuer :func:`continue_contact_branch`, which runs the trace
+    below at the seed's contact set and joins the segments into one branch.
 Trace (:func:`trace_discrete_branch`)
     Each new seed is followed both ways by pseudo-arclength continuation
     (:func:`continuation.continue_branch`, H. B. Keller 1977) of the equality-constrained
@@ -76,12 +81,17 @@ from continuation import (
     STEP_TOO_SMALL,
     STOPPED,
     Branch,
+    BranchSearch,
     ContinuationSettings,
     FunctionProblem,
+    Problem,
+    SearchSettings,
+    SpecialPoint,
     continue_branch,
     inertia_negative,
 )
 from elastocap._version import __version__
+from elastocap.branchset import BranchModel, BranchSet
 from elastocap.scene import Scene, SceneError
 from elastocap.strip.model import (
     DiscreteStrip,
@@ -92,15 +102,19 @@ from elastocap.strip.model import (
 from elastocap.strip.solve import (
     R_REL,
     Equilibrium,
+    lagrangian_hessian,
     open_state,
+    refine as refine_equilibrium,
     solve_equilibrium,
     stability,
     wrapped_state,
 )
 
-__all__ = ["CHORD_STOP", "DEFAULTS", "NOT_HANDLED", "ActiveSetEvent", "BranchSegment",
-           "ContactBranchSet", "DiscreteBranch", "active_set_problem", "open_branch_end",
-           "solved_crossings", "trace_contact_branches", "trace_discrete_branch"]
+__all__ = ["CHORD_STOP", "DEFAULTS", "NOT_HANDLED", "SEARCH", "STRIP", "ActiveSetEvent",
+           "BranchSegment", "ContactProblem", "DiscreteBranch", "active_set_problem",
+           "continue_contact_branch", "open_branch_end", "report_lines",
+           "search_contact_branches", "segments_of", "solved_crossings",
+           "trace_contact_branches", "trace_discrete_branch", "window"]
 
 # Difference step of dF/dDelta (length): eps^(1/3) ~ 6e-6 balances truncation against
 # rounding. The capillary force is piecewise smooth in Delta: its slope jumps where a
@@ -558,8 +572,12 @@ def _collect(strip, active, prob, tools, br, values):
         if stopped and (sp.index > m or (sp.index == m and (
                 sp.u is None or float(np.min(values(sp.u, sp.p))) < -1e-9))):
             continue
+        uf, rf = split(sp.u) if sp.u is not None else (None, None)
         f = {"delta": float(sp.p), "located": bool(sp.located),
-             "u": split(sp.u)[0].copy() if sp.u is not None else None, "index": None}
+             "u": uf.copy() if uf is not None else None,
+             "r": rf.copy() if rf is not None else None,
+             "precision": float(sp.precision) if math.isfinite(sp.precision) else 0.0,
+             "index": None}
         for o in br.points("stability"):
             if o.index == sp.index:
                 f["index"] = tuple(int(i) for i in o.data["stability"])
@@ -745,233 +763,7 @@ NOT_HANDLED = (
 )
 
 
-# --------------------------------------------------------------------------- result
-@dataclass
-class ContactBranchSet:
-    """Branches of the strip on the ground in Delta, with contact handled.
-
-    Attributes
-    ----------
-    scene : Scene
-    parameter : str
-        ``"drop.wetted_length"``.
-    prange : (float, float)
-        Range of Delta (length).
-    n : int
-        Edges of the discrete strip.
-    branches : list of DiscreteBranch
-        Each a chain of fixed-contact-set segments; the two directions from a seed are two
-        entries (``labels`` say which).
-    labels : list of str
-    points : list of dict of ndarray
-        Per branch, the observables of :func:`point_measures` at every point, plus
-        ``delta`` and ``index`` (the stability index: negative eigenvalues of the energy's
-        Hessian on the tangent space of the contacts; 0 = stable).
-    folds : list of dict
-        Smooth and contact folds: ``value`` (Delta), ``kind`` (``"smooth"`` or
-        ``"contact"``), ``node`` and ``event`` (contact folds), ``stability_change``
-        (index before, after along the trace), ``measure``, ``energy``, ``branch``,
-        ``error_estimate`` (length; NaN without refinement).
-    window : dict
-        ``open_max`` / ``encapsulated_min``: the largest Delta of a stable admissible open
-        state and the smallest of a stable admissible encapsulated state (``value``,
-        ``error_estimate``), ``bistable`` (open_max > encapsulated_min).
-    events : list of dict
-        Every active-set change (``delta``, ``kind``, ``node``, ``branch``).
-    kind_changes : list of dict
-        Where the paper's verdict flips along a branch without a fold (``value``,
-        ``index``, ``from``, ``admissible``, ``branch``), located to ~1e-12 in Delta.
-    branch_points, maxwell_points : list
-        Empty (not searched for here; kept for the CLI's common report).
-    metadata : dict
-        Scene, resolution, tolerances, version, timing.
-    """
-
-    scene: Scene
-    parameter: str
-    prange: tuple
-    n: int
-    branches: list = field(default_factory=list)
-    labels: list = field(default_factory=list)
-    points: list = field(default_factory=list)
-    folds: list = field(default_factory=list)
-    window: dict = field(default_factory=dict)
-    events: list = field(default_factory=list)
-    branch_points: list = field(default_factory=list)
-    maxwell_points: list = field(default_factory=list)
-    metadata: dict = field(default_factory=dict)
-    kind_changes: list = field(default_factory=list)
-
-    def summary(self) -> dict:
-        """Plain data for ``--json``: special points, window, one line per branch."""
-        lines = []
-        for lab, br, pts in zip(self.labels, self.branches, self.points, strict=True):
-            d = pts["delta"]
-            lines.append({
-                "label": lab,
-                "points": int(d.size),
-                "range": [float(d.min()), float(d.max())] if d.size else None,
-                "stable_points": int(np.sum(pts["index"] == 0)),
-                "segments": len(br.segments),
-                "events": len(br.events),
-                "status": br.status,
-                "message": br.message,
-            })
-        return {
-            "scene": self.scene.name,
-            "parameter": self.parameter,
-            "range": list(self.prange),
-            "solver": "discrete strip, every contact topology (elastocap.strip.trace)",
-            "folds": self.folds,
-            "window": self.window,
-            "kind_changes": self.kind_changes,
-            "branch_points": self.branch_points,
-            "maxwell_points": self.maxwell_points,
-            "events": len(self.events),
-            "branches": lines,
-            "not_handled": NOT_HANDLED,
-            "metadata": self.metadata,
-        }
-
-    def save(self, out_dir) -> list:
-        """Write ``branch_K.npz`` per traced direction (points, states, contact sets,
-        metadata) and ``branches.json`` (the summary and the contact events); each file is
-        written to a temporary name and renamed (atomic). :meth:`load` reads them back."""
-        import json
-        import os
-
-        from elastocap.jsonutil import jsonable
-
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = []
-        meta = json.dumps(jsonable({**self.metadata, "scene": self.scene.data,
-                                    "scene_name": self.scene.name}))
-        for k, (br, pts) in enumerate(zip(self.branches, self.points, strict=True)):
-            u = np.concatenate([s.u for s in br.segments]) if br.segments else np.empty(0)
-            held = (np.concatenate([np.repeat(s.active[None], s.delta.size, 0)
-                                    for s in br.segments]) if br.segments else np.empty(0))
-            p = out / f"branch_{k}.npz"
-            tmp = out / f".branch_{k}.tmp.npz"
-            sizes = np.array([s.delta.size for s in br.segments], dtype=int)
-            np.savez(tmp, u=u, held=held, label=self.labels[k], metadata=meta,
-                     status=br.status, message=br.message, segment_sizes=sizes,
-                     **{key: np.asarray(v) for key, v in pts.items()})
-            os.replace(tmp, p)
-            paths.append(p)
-        js = out / "branches.json"
-        tmp = out / ".branches.json.tmp"
-        tmp.write_text(json.dumps(jsonable({**self.summary(), "event_list": self.events,
-                                            "prange": list(self.prange), "n": self.n}),
-                                  indent=2))
-        os.replace(tmp, js)
-        paths.append(js)
-        return paths
-
-    @classmethod
-    def load(cls, out_dir) -> ContactBranchSet:
-        """The branch set :meth:`save` wrote to ``out_dir``.
-
-        Points, states, contact sets, special points, window, events and metadata come
-        back as saved; each traced direction is one :class:`DiscreteBranch` with its
-        segments (points, states, contact set, index) and its events as the dicts of
-        ``events``; the continuation's raw output, the reactions and the segments' folds are
-        not saved (``branch`` and ``event`` are None).
-        """
-        import json
-
-        from elastocap.scene import build_scene
-
-        def floats(v):  # jsonable wrote non-finite floats as strings
-            if isinstance(v, dict):
-                return {key: floats(x) for key, x in v.items()}
-            if isinstance(v, list):
-                return [floats(x) for x in v]
-            return float(v) if v in ("nan", "inf", "-inf") else v
-
-        out = Path(out_dir)
-        js = floats(json.loads((out / "branches.json").read_text()))
-        k, branches, labels, points = 0, [], [], []
-        scene = None
-        while (out / f"branch_{k}.npz").is_file():
-            with np.load(out / f"branch_{k}.npz") as z:
-                meta = json.loads(str(z["metadata"]))
-                if scene is None:
-                    scene = build_scene(meta["scene"], meta.get("scene_name", "scene"))
-                skip = {"u", "held", "label", "metadata", "status", "message",
-                        "segment_sizes"}
-                pts = {key: np.array(z[key]) for key in z.files if key not in skip}
-                u, held = np.array(z["u"]), np.array(z["held"], dtype=bool)
-                segs, i = [], 0
-                for m in np.array(z["segment_sizes"]):
-                    sl = slice(i, i + int(m))
-                    segs.append(BranchSegment(held[i].copy(), pts["delta"][sl], u[sl],
-                                              np.zeros_like(u[sl]), pts["energy"][sl],
-                                              pts["index"][sl], pts["index"][sl], [], None,
-                                              None, "loaded", ""))
-                    i += int(m)
-                label = str(z["label"])
-                evs = [e for e in js["event_list"] if e["branch"] == label]
-                branches.append(DiscreteBranch(segs, str(z["status"]), str(z["message"]),
-                                               evs))
-                labels.append(label)
-                points.append(pts)
-            k += 1
-        if scene is None:
-            raise FileNotFoundError(f"{out}: no branch_0.npz (expected the files of "
-                                    "ContactBranchSet.save)")
-        return cls(scene, js["parameter"], tuple(js["prange"]), int(js["n"]), branches,
-                   labels, points, js["folds"], js["window"], js["event_list"],
-                   js["branch_points"], js["maxwell_points"], js["metadata"],
-                   js["kind_changes"])
-
-    def plot(self, path=None, insets=3):
-        """The branch diagram (:func:`elastocap.strip.plot.plot_contact_branch_set`)."""
-        from elastocap.strip.plot import plot_contact_branch_set
-
-        return plot_contact_branch_set(self, path, insets)
-
-    def report(self) -> str:
-        """The human-readable report (:meth:`report_lines`, one string)."""
-        return "\n".join(self.report_lines())
-
-    def report_lines(self) -> list[str]:
-        """Human-readable report (the CLI without ``--json``)."""
-        m = self.metadata
-        out = [f"{self.scene.name}: {len(self.branches)} branches in {self.parameter} over "
-               f"[{self.prange[0]:.6g}, {self.prange[1]:.6g}] (discrete strip, n = {self.n}"
-               f" edges, {len(self.events)} contact events, {m['wall_time_s']:.1f} s)"]
-        nf = m.get("n_edges_refined")
-
-        def err(e):
-            if nf is None:
-                return "(not estimated)"
-            return f"± {e:.1e}" if e == e else f"(no match at n = {nf})"
-
-        for f in self.folds:
-            what = "smooth fold " if f["kind"] == "smooth" else \
-                f"contact fold ({f['event']} of node {f['node']})"
-            out.append(f"  {what:38s} Delta {f['value']:.9f} {err(f['error_estimate']):22s}"
-                       f" stability {f['stability_change']}  measure {f['measure']:+.4f}"
-                       + ("" if f["admissible"] else "  (strip crosses itself)"))
-        w = self.window
-        for key, name in (("open_max", "stable open state up to"),
-                          ("encapsulated_min", "stable encapsulated state from")):
-            v = w.get(key)
-            if v and v["value"] is not None:
-                out.append(f"  {name:32s} Delta {v['value']:.9f} {err(v['error_estimate'])}")
-        line = f"  bistable at n = {self.n}: {w.get('bistable')}"
-        if w.get("width") is not None:
-            line += f" (width {w['width']:+.2e})"
-        if nf is not None:
-            wr = w.get("width_refined")
-            line += f"; at n = {nf}: {w.get('bistable_refined')}" + (
-                f" (width {wr:+.2e})" if wr is not None else "")
-        out.append(line)
-        return out
-
-
-# --------------------------------------------------------------------------- driver
+# --------------------------------------------------------------------------- checks
 def _check(scene: Scene, parameter: str, prange):
     if not (scene.effects.gravity > 0.0 and scene.effects.ground):
         raise SceneError("effects", {"gravity": scene.effects.gravity,
@@ -992,76 +784,313 @@ def _check(scene: Scene, parameter: str, prange):
     return lo, hi
 
 
-def solved_crossings(strip: DiscreteStrip, branches):
-    """Each place a traced segment crosses the strip's Delta, solved there exactly.
+# --------------------------------------------------------------------------- the search
+class ContactProblem(Problem):
+    """The strip on the ground as one fixed-size, semismooth problem F(v, Delta) = 0.
 
-    Yields (segment, j, Equilibrium): Newton at the segment's contact set from its traced
-    point j nearest the crossing (converged or not: check ``success``).
+    Unknowns v = (u, w), shape (2 N,), N = n + 1: the state u = (z_0, theta_0 ..
+    theta_{n-1}) and one reaction per node, w_k = r_k / gamma (r_k force, 0 off the
+    ground). Residual (force units)::
+
+        grad E(u) - sum_k r_k grad z_k(u)      (N equations)
+        min(r_k, c z_k)                        (N equations, c = B / h^3)
+
+    the complementarity z >= 0, r >= 0, r z = 0 written as the semismooth equation of the
+    primal-dual active-set method (Hintermueller, Ito & Kunisch 2002). ``jacobian`` is its
+    generalized Jacobian (row c grad z_k where c z_k < r_k, the node held; row d r_k / d w_k
+    otherwise), so Newton on F is the active-set method and the size of v never changes at
+    a contact event: the generic search (:class:`continuation.BranchSearch`) records,
+    deflates and compares strip states as for any problem. The branches themselves are
+    continued one contact set at a time (:func:`continue_contact_branch`, the search's
+    continuer), where F is smooth.
+
+    ``seeds(Delta)``: at the values of ``seed_deltas``, the deposition
+    (:func:`~elastocap.strip.solve.open_state`) and the fold
+    (:func:`~elastocap.strip.solve.wrapped_state`), in that order (a descent that fails
+    gives a non-finite seed, which the search's Newton refuses at once); none elsewhere.
+    ``only``: the (Delta, seed index) pairs to compute (the others are non-finite seeds);
+    default all. ``deflation_indices``: u (the reactions are not measured).
     """
-    d0 = strip.delta
-    for br in branches:
-        for seg in br.segments:
-            d = seg.delta
-            if d.size < 2 or not d.min() <= d0 <= d.max():
+
+    SEED_KINDS = ("deposition", "fold")
+
+    def __init__(self, strip: DiscreteStrip, seed_deltas=(), only=None):
+        self.strip = strip
+        self.only = None if only is None else {(round(float(d), 10), int(j)) for d, j in only}
+        self.N = strip.size
+        self.c = strip.B / strip.h**3
+        self.rs = strip.gamma if strip.gamma > 0.0 else 1.0
+        self.seed_deltas = tuple(float(d) for d in seed_deltas)
+        self.deflation_indices = slice(0, self.N)
+        self.name = f"discrete strip on the ground, n = {strip.n}"
+        self.parameters = {"n_edges": strip.n}
+        self._cache = _Cache(strip)
+
+    def split(self, v) -> tuple[np.ndarray, np.ndarray]:
+        """(u, r): the state (N,) and the reactions (N,, force)."""
+        v = np.asarray(v, dtype=float)
+        return v[: self.N], self.rs * v[self.N:]
+
+    def join(self, u, r) -> np.ndarray:
+        """v from the state u and the reactions r (force)."""
+        return np.concatenate([np.asarray(u, dtype=float), np.asarray(r, dtype=float) / self.rs])
+
+    def residual(self, v, p):
+        s = self._cache.at(p)
+        if s is None:
+            return np.full(2 * self.N, np.nan)
+        u, r = self.split(v)
+        g = s.gradient(u)
+        G = s.constraint_jacobian(u)
+        return np.concatenate([g - G.T @ r, np.minimum(r, self.c * s.heights(u))])
+
+    def jacobian(self, v, p):
+        s = self._cache.at(p)
+        N = self.N
+        u, r = self.split(v)
+        G = s.constraint_jacobian(u)
+        J = np.zeros((2 * N, 2 * N))
+        J[:N, :N] = lagrangian_hessian(s, u, r)
+        J[:N, N:] = -self.rs * G.T
+        held = self.c * s.heights(u) < r
+        J[N:, :N][held] = self.c * G[held]
+        free = np.flatnonzero(~held)
+        J[N + free, N + free] = self.rs
+        return J
+
+    def dfdp(self, v, p):
+        e = _FD_DELTA * (1.0 + abs(p))
+        return (self.residual(v, p + e) - self.residual(v, p - e)) / (2.0 * e)
+
+    def held(self, v, p) -> np.ndarray:
+        """The contact set of v (bool, (N,)): where the min picks the gap."""
+        u, r = self.split(v)
+        return self.c * self._cache.at(p).heights(u) < r
+
+    def seeds(self, p):
+        if not any(abs(p - d) <= 1e-12 for d in self.seed_deltas):
+            return []
+        s = self.strip.with_(delta=float(p))
+        out = []
+        for j, seed in enumerate((open_state, wrapped_state)):
+            if self.only is not None and (round(float(p), 10), j) not in self.only:
+                out.append(np.full(2 * self.N, np.nan))
                 continue
-            for i in range(d.size - 1):
-                if d[i] == d[i + 1] or (d[i] - d0) * (d[i + 1] - d0) > 0.0:
-                    continue
-                j = i if abs(d[i] - d0) <= abs(d[i + 1] - d0) else i + 1
-                yield seg, j, solve_equilibrium(strip, seg.u[j], active=seg.active,
-                                                tol=1e-11, max_iter=30)
+            eq = seed(s)
+            if eq.success:
+                # polished to the round-off floor: the search's Newton accepts it as it is
+                eq = solve_equilibrium(s, eq.u, active=eq.active, tol=_POLISH, max_iter=10,
+                                       compute_index=False)
+            out.append(self.join(eq.u, np.where(eq.active, eq.reactions, 0.0))
+                       if eq.success else np.full(2 * self.N, np.nan))
+        return out
 
 
-def _on_branch(strip: DiscreteStrip, u_seed, br: DiscreteBranch) -> bool:
-    """Does the state ``u_seed`` at the strip's Delta lie on the traced branch ``br``?"""
-    return any(eq.success and float(np.max(np.abs(eq.u - u_seed))) <= _SAME
-               for _seg, _j, eq in solved_crossings(strip, [br]))
+# Relative KKT residual of a polished seed (solve_equilibrium's tol): the round-off floor
+# is ~1e-12 of the largest generalized force, so 1e-11 leaves max|F| ~ 4e-10 at gamma = 40,
+# below the search's newton_tol of 1e-9.
+_POLISH = 1e-11
 
 
-def _branch_points(strip: DiscreteStrip, br: DiscreteBranch) -> dict:
-    rows = []
-    for seg in br.segments:
-        for d, u, idx in zip(seg.delta, seg.u, seg.index, strict=True):
-            m = point_measures(strip.with_(delta=float(d)), u)
-            m["delta"] = float(d)
-            m["index"] = int(idx)
-            rows.append(m)
-    keys = rows[0].keys() if rows else ("delta", "index")
-    return {k: np.array([r[k] for r in rows]) for k in keys}
+def _empty(message: str) -> Branch:
+    return Branch(p=np.empty(0), u=None, tangent=None, ds=np.empty(0),
+                  newton_iterations=np.empty(0, dtype=int), stability=np.empty(0, dtype=int),
+                  observables={}, special_points=[], status=START_FAILED, message=message)
 
 
-def _special(strip: DiscreteStrip, branches, labels) -> tuple[list, list]:
-    folds, events = [], []
-    for b, br in enumerate(branches):
-        for f in br.folds:
+_END_CODES = {"parameter_bound": PARAMETER_BOUND, "max_steps": MAX_STEPS,
+              "max_segments": MAX_STEPS, "step_too_small": STEP_TOO_SMALL,
+              "restart_failed": STEP_TOO_SMALL, "non_finite": NON_FINITE,
+              "start_failed": START_FAILED}
+
+
+def continue_contact_branch(problem: ContactProblem, v, p: float,
+                            settings: ContinuationSettings, events=None,
+                            stop_on=()) -> Branch:
+    """The branch of the strip through the KKT point ``(v, p)``, both ways (the search's
+    continuer).
+
+    From the contact set of v, :func:`trace_discrete_branch` follows the branch down and up
+    in Delta through every contact event (restarting at the updated set) and every corner;
+    the two chains are joined into one :class:`continuation.Branch` in the problem's fixed
+    unknowns v = (u, r / gamma), in order of the arclength (the downward chain reversed,
+    then the upward one; a segment's end and the next one's start are the same event
+    point, both kept).
+
+    Each point carries ``stability`` (the index at its contact set), the observables of
+    :func:`~elastocap.strip.model.point_measures`, ``index_strong``
+    (:func:`~elastocap.strip.solve.stability`) and ``segment``. Special points: smooth folds
+    (``fold``, name ``"smooth"``), contact folds (``fold``, name ``"contact"``: Delta turns
+    back at an event; ``data``: ``node``, ``event``, ``stability`` in branch order),
+    contact events (``event``, named by their kind) and the two ends (``endpoint``, named by
+    the status of that end). ``metadata``: ``segments`` (``start``, ``stop`` point indices,
+    ``held`` node indices), ``start_index`` (the point v), ``end_status`` and
+    ``end_message`` (down, up). ``settings`` supplies the range (``p_min``, ``p_max``) and
+    the step controls; ``events`` and ``stop_on`` are not used (the segments have their
+    own: the contact events).
+    """
+    strip = problem.strip.with_(delta=float(p))
+    u, r = problem.split(v)
+    eq = solve_equilibrium(strip, u, active=problem.held(v, p), tol=_POLISH, max_iter=30)
+    if not eq.success:
+        return _empty(f"the start at Delta = {p:.12g} is not a contact equilibrium "
+                      f"({eq.message})")
+    halves = []
+    for direction in (-1, 1):
+        st = settings.replace(direction=direction)
+        halves.append(trace_discrete_branch(strip, eq, (settings.p_min, settings.p_max), st,
+                                            restart=True, max_segments=MAX_SEGMENTS))
+    return _join(problem, halves)
+
+
+def _join(problem: ContactProblem, halves) -> Branch:
+    down, up = halves
+    base = problem.strip
+    P, V, I, IS, SEG, segs, sps = [], [], [], [], [], [], []
+
+    def add_segment(seg, reverse):
+        i0 = len(P)
+        order = range(seg.delta.size - 1, -1, -1) if reverse else range(seg.delta.size)
+        k = len(segs)
+        for j in order:
+            P.append(float(seg.delta[j]))
+            V.append(problem.join(seg.u[j], seg.reactions[j]))
+            I.append(int(seg.index[j]))
+            IS.append(int(seg.index_strong[j]))
+            SEG.append(k)
+        segs.append({"start": i0, "stop": len(P),
+                     "held": [int(q) for q in np.flatnonzero(seg.active)]})
+        ev = seg.event
+        if ev is not None and ev.kind != "contact_point_on_node":
+            sps.append(SpecialPoint("event", i0 if reverse else len(P) - 1, ev.delta,
+                                    problem.join(ev.u, ev.reactions), ev.precision, True,
+                                    ev.kind, {"node": int(ev.node), "value": float(ev.value)}))
+        for f in seg.folds:
             if f["u"] is None:
                 continue
-            m = point_measures(strip.with_(delta=f["delta"]), f["u"])
-            folds.append({"value": f["delta"], "kind": "smooth", "node": None, "event": None,
-                          "stability_change": list(f["index"]) if f["index"] else None,
+            near = i0 + int(np.argmin(np.abs(np.array(P[i0:]) - f["delta"])))
+            chg = f["index"][::-1] if (reverse and f["index"]) else f["index"]
+            sps.append(SpecialPoint("fold", near, f["delta"], problem.join(f["u"], f["r"]),
+                                    f["precision"], f["located"], "smooth",
+                                    {"stability": list(chg) if chg else None}))
+
+    for seg in reversed(down.segments):
+        add_segment(seg, True)
+    start = len(P) - 1 if down.segments else 0
+    for seg in up.segments:
+        add_segment(seg, False)
+    if not P:
+        return _empty(f"no segment traced: {down.message}; {up.message}")
+    for half, reverse in ((down, True), (up, False)):
+        for tp in half.turning_points:
+            ev = next(e for e in half.events if e.delta == tp["delta"] and e.node == tp["node"])
+            i = next(sp.index for sp in sps if sp.kind == "event" and sp.p == ev.delta
+                     and sp.data["node"] == ev.node)
+            chg = list(tp["index"][::-1]) if reverse else list(tp["index"])
+            sps.append(SpecialPoint("fold", i, ev.delta, problem.join(ev.u, ev.reactions),
+                                    ev.precision, True, "contact",
+                                    {"node": int(tp["node"]), "event": tp["kind"],
+                                     "stability": chg}))
+    m = len(P)
+    for i, half in ((0, down), (m - 1, up)):
+        sps.append(SpecialPoint("endpoint", i, P[i], V[i].copy(), 0.0, True, half.status,
+                                {"message": half.message}))
+    sps.sort(key=lambda sp: (sp.index, sp.p))
+    rows = [point_measures(base.with_(delta=d), V[i][: problem.N]) for i, d in enumerate(P)]
+    obs = {k: np.array([row[k] for row in rows], dtype=float) for k in rows[0]}
+    obs["index_strong"] = np.array(IS, dtype=float)
+    obs["segment"] = np.array(SEG, dtype=float)
+    codes = [_END_CODES.get(h.status, STOPPED) for h in (down, up)]
+    bad = [c for c in codes if c not in (PARAMETER_BOUND, STOPPED)]
+    status = bad[0] if bad else (PARAMETER_BOUND if codes == [PARAMETER_BOUND] * 2
+                                 else STOPPED)
+    return Branch(
+        p=np.array(P), u=np.array(V), tangent=None, ds=np.zeros(m),
+        newton_iterations=np.zeros(m, dtype=int), stability=np.array(I, dtype=int),
+        observables=obs, special_points=sps, status=status,
+        message=f"down: {down.status} ({down.message}); up: {up.status} ({up.message})",
+        metadata={"problem": problem.name, "segments": segs, "start_index": int(start),
+                  "end_status": [down.status, up.status],
+                  "end_message": [down.message, up.message]})
+
+
+def segments_of(br: Branch):
+    """(slice of points, held nodes (bool, (N,))) of each fixed-set segment of a strip
+    branch (:func:`continue_contact_branch`)."""
+    N = br.u.shape[1] // 2
+    for seg in br.metadata["segments"]:
+        held = np.zeros(N, dtype=bool)
+        held[np.asarray(seg["held"], dtype=int)] = True
+        yield slice(seg["start"], seg["stop"]), held
+
+
+def _label(origin, kinds) -> str:
+    how, p = origin["how"], origin.get("p")
+    if how == "seed":
+        return f"{kinds[origin['seed']]} at Delta = {p:.4g}"
+    if how == "neighbour":
+        return f"from a state at Delta = {origin['from_sample']:.4g}, at Delta = {p:.4g}"
+    if how == "special_point":
+        return f"next to a {origin['kind']} at Delta = {origin['near']:.4g}"
+    return f"{how} at Delta = {p:.4g}"
+
+
+#: The generic search's settings for the strip. Samples are the seed values (and the two
+#: range ends); the seeds are the physics' two states there. Neighbour seeds (each known
+#: state tried, deflated, at the next sample) are on: measured at n = 60, x = 2 and 3, they
+#: found no branch the seeds miss (1 and 2 branches) for +0.5 and -0.1 s CPU (6.0 and
+#: 8.8 s). Switching is off: the fixed-set problem is generic in Delta (no branch points).
+SEARCH = SearchSettings(samples=0, same_tol=_SAME, switch=False, max_rounds=3)
+
+
+def search_contact_branches(strip: DiscreteStrip, lo: float, hi: float, progress=None,
+                            settings: SearchSettings = SEARCH, only=None, starts=()):
+    """Every branch of ``strip`` over lo <= Delta <= hi reached by the generic search.
+
+    :class:`continuation.BranchSearch` on :class:`ContactProblem` with the continuer
+    :func:`continue_contact_branch`: seeds at ``SEED_DELTAS`` inside the range (its
+    midpoint if none), each deflated against the states known there (the crossings of every
+    branch already traced, recorded at each seed value), new ones continued both ways.
+    ``only`` limits the seeds (:class:`ContactProblem`); ``starts`` (v, Delta) are
+    continued first. Returns (branches, labels, search result).
+    """
+    grid = tuple(d for d in SEED_DELTAS if lo < d < hi) or (0.5 * (lo + hi),)
+    prob = ContactProblem(strip, grid, only)
+    cont = ContinuationSettings(**{**DEFAULTS, "max_steps": _MAX_STEPS, "p_min": lo,
+                                   "p_max": hi})
+    search = BranchSearch(prob, cont, settings.replace(sample_values=grid), starts=starts,
+                          parameter="drop.wetted_length", continuer=continue_contact_branch)
+    labels = []
+    for br in search:
+        labels.append(_label(search.result.origins[len(labels)], prob.SEED_KINDS))
+        if progress is not None:
+            progress(f"traced {labels[-1]} (n = {strip.n}): {len(br)} points, "
+                     f"{len(br.metadata['segments'])} segments, ends "
+                     f"{' / '.join(br.metadata['end_status'])}")
+    return search.result.branches, labels, search.result
+
+
+# --------------------------------------------------------------------------- reporting
+def _fold_list(strip: DiscreteStrip, branches, labels) -> list:
+    folds = []
+    N = strip.size
+    for br, lab in zip(branches, labels, strict=True):
+        for sp in br.folds:
+            m = point_measures(strip.with_(delta=sp.p), sp.u[:N])
+            folds.append({"value": float(sp.p), "kind": sp.name,
+                          "node": sp.data.get("node"), "event": sp.data.get("event"),
+                          "stability_change": sp.data.get("stability"),
                           "measure": m["measure"], "energy": m["energy"],
                           "encapsulated": bool(m["encapsulated"]),
-                          "admissible": bool(m["admissible"]), "branch": labels[b],
-                          "located": f["located"]})
-        for tp in br.turning_points:
-            ev = next(e for e in br.events if e.delta == tp["delta"] and e.node == tp["node"])
-            m = point_measures(strip.with_(delta=ev.delta), ev.u)
-            folds.append({"value": tp["delta"], "kind": "contact", "node": tp["node"],
-                          "event": tp["kind"], "stability_change": list(tp["index"]),
-                          "measure": m["measure"], "energy": m["energy"],
-                          "encapsulated": bool(m["encapsulated"]),
-                          "admissible": bool(m["admissible"]), "branch": labels[b],
-                          "located": True})
-        for e in br.events:
-            events.append({"delta": e.delta, "kind": e.kind, "node": e.node,
-                           "branch": labels[b]})
-    # the two directions from one seed can meet the same fold (a seed between two folds
-    # on a closed stretch is not possible, but a branch traced from two seeds is skipped;
-    # keep the list unique anyway)
-    uniq = {}
-    for f in folds:
-        uniq.setdefault((round(f["value"], 10), f["kind"], f["node"]), f)
-    return sorted(uniq.values(), key=lambda f: f["value"]), events
+                          "admissible": bool(m["admissible"]), "branch": lab,
+                          "index": int(sp.index), "located": bool(sp.located),
+                          "error_estimate": None})
+    return sorted(folds, key=lambda f: f["value"])
+
+
+def _event_list(branches, labels) -> list:
+    return [{"delta": float(sp.p), "kind": sp.name, "node": sp.data["node"], "branch": lab}
+            for br, lab in zip(branches, labels, strict=True) for sp in br.points("event")]
 
 
 def _kind_changes(strip: DiscreteStrip, branches, labels) -> list:
@@ -1071,42 +1100,40 @@ def _kind_changes(strip: DiscreteStrip, branches, labels) -> list:
     bisected, each state solved by Newton at the segment's contact set from the nearer
     point; the criterion x(S_c) - x(L) is continuous along the branch, so the flip is where
     the free end passes above the impact centre. Returns dicts ``value``, ``index`` (the
-    stability index there), ``branch``.
+    stability index there), ``from``, ``admissible``, ``branch``.
     """
     out = []
-    for b, br in enumerate(branches):
-        for seg in br.segments:
-            enc = [is_encapsulated(strip.with_(delta=float(d)), u)
-                   for d, u in zip(seg.delta, seg.u, strict=True)]
-            for i in range(len(enc) - 1):
-                if enc[i] == enc[i + 1] or seg.delta[i] == seg.delta[i + 1]:
+    N = strip.size
+    for br, lab in zip(branches, labels, strict=True):
+        enc = br.observables["encapsulated"] == 1.0
+        for sl, held in segments_of(br):
+            for i in range(sl.start, sl.stop - 1):
+                if enc[i] == enc[i + 1] or br.p[i] == br.p[i + 1]:
                     continue
-                a, c = float(seg.delta[i]), float(seg.delta[i + 1])
-                ua = seg.u[i]
-                ea = enc[i]
-                ok = True
+                a, c = float(br.p[i]), float(br.p[i + 1])
+                ua, ea, ok = br.u[i][:N], bool(enc[i]), True
                 for _ in range(60):
                     if abs(c - a) <= 1e-12 * (1.0 + abs(a)):
                         break
-                    m = 0.5 * (a + c)
-                    eq = solve_equilibrium(strip.with_(delta=m), ua, active=seg.active,
-                                           tol=1e-11, max_iter=30)
+                    mid = 0.5 * (a + c)
+                    eq = solve_equilibrium(strip.with_(delta=mid), ua, active=held,
+                                           tol=1e-11, max_iter=30, compute_index=False)
                     if not eq.success:
                         ok = False
                         break
-                    if is_encapsulated(strip.with_(delta=m), eq.u) == ea:
-                        a, ua = m, eq.u
+                    if is_encapsulated(strip.with_(delta=mid), eq.u) == ea:
+                        a, ua = mid, eq.u
                     else:
-                        c = m
+                        c = mid
                 if ok:
                     m = point_measures(strip.with_(delta=a), ua)
-                    out.append({"value": 0.5 * (a + c), "index": int(seg.index[i]),
+                    out.append({"value": 0.5 * (a + c), "index": int(br.stability[i]),
                                 "from": "encapsulated" if ea else "open",
-                                "admissible": bool(m["admissible"]), "branch": labels[b]})
+                                "admissible": bool(m["admissible"]), "branch": lab})
     return out
 
 
-def _window(points, folds=(), kind_changes=()) -> dict:
+def _window(branches, folds=(), kind_changes=()) -> dict:
     """Largest Delta of a stable open state, smallest of a stable encapsulated one.
 
     A stable stretch of a branch ends at a located special point: a fold, a contact fold
@@ -1116,13 +1143,14 @@ def _window(points, folds=(), kind_changes=()) -> dict:
     traced point, the stable stretch reaching the range's end).
     """
     opens, encs = [], []
-    for pts in points:
-        ok = (pts["index"] == 0) & (pts["admissible"] == 1.0)
-        enc = pts["encapsulated"] == 1.0
+    for br in branches:
+        o = br.observables
+        ok = (br.stability == 0) & (o["admissible"] == 1.0)
+        enc = o["encapsulated"] == 1.0
         if np.any(ok & ~enc):
-            opens.append((float(pts["delta"][ok & ~enc].max()), "range"))
+            opens.append((float(br.p[ok & ~enc].max()), "range"))
         if np.any(ok & enc):
-            encs.append((float(pts["delta"][ok & enc].min()), "range"))
+            encs.append((float(br.p[ok & enc].min()), "range"))
     for f in folds:
         if f["admissible"] and f["stability_change"] and 0 in f["stability_change"]:
             (encs if f["encapsulated"] else opens).append((f["value"], f"{f['kind']}_fold"))
@@ -1135,45 +1163,97 @@ def _window(points, folds=(), kind_changes=()) -> dict:
     bot = min(encs, key=lambda t: (t[0], t[1] == "range")) if encs else None
     return {
         "open_max": {"value": top[0] if top else None, "how": top[1] if top else None,
-                     "error_estimate": math.nan},
+                     "error_estimate": None},
         "encapsulated_min": {"value": bot[0] if bot else None,
-                             "how": bot[1] if bot else None, "error_estimate": math.nan},
+                             "how": bot[1] if bot else None, "error_estimate": None},
         "bistable": bool(top and bot and top[0] > bot[0]),
         "width": (top[0] - bot[0]) if top and bot else None,
     }
 
 
-def _trace_all(strip: DiscreteStrip, lo: float, hi: float, progress=None):
-    grid = [d for d in SEED_DELTAS if lo < d < hi] or [0.5 * (lo + hi)]
-    branches, labels = [], []
-    for kind, seed in (("deposition", open_state), ("fold", wrapped_state)):
-        for d in grid:
-            s = strip.with_(delta=float(d))
-            eq = seed(s)
-            if not eq.success:
-                continue
-            if any(_on_branch(s, eq.u, br) for br in branches):
-                continue
-            for direction in (-1, 1):
-                st = ContinuationSettings(**{**DEFAULTS, "direction": direction,
-                                             "max_steps": _MAX_STEPS})
-                br = trace_discrete_branch(s, eq, (lo, hi), st, restart=True,
-                                           max_segments=MAX_SEGMENTS)
-                branches.append(br)
-                labels.append(f"{kind} at Delta = {d:.4g}, "
-                              f"{'down' if direction < 0 else 'up'}")
-                if progress is not None:
-                    progress(labels[-1], br)
-    return branches, labels
+def _open_end(branches, labels, folds, kind_changes) -> dict:
+    """The stable open stretch traced up from the deposition at the lowest seed value."""
+    ks = [k for k, lab in enumerate(labels) if lab.startswith("deposition at")]
+    if not ks:
+        return {"value": None, "how": "no deposition branch"}
+    k = min(ks, key=lambda q: float(labels[q].rsplit("= ", 1)[1]))
+    br = branches[k]
+    s0 = int(br.metadata["start_index"])
+    o = br.observables
+    ok = ((br.stability == 0) & (o["encapsulated"] == 0.0) & (o["admissible"] == 1.0))[s0:]
+    d_all = br.p[s0:]
+    if not ok[0]:
+        return {"value": None, "how": "deposition not a stable open state", "label": labels[k]}
+    stop = int(np.argmin(ok)) if not ok.all() else ok.size
+    end = float(d_all[:stop].max())
+    if stop == ok.size:
+        how = "range"
+    elif br.stability[s0 + stop] != 0:
+        how = "stability lost"
+    elif o["encapsulated"][s0 + stop] == 1.0:
+        how = "kind change"
+    else:
+        how = "inadmissible"
+    # the located special point between the last stable open point and the next one
+    if stop < ok.size:
+        a, b = sorted((end, float(d_all[stop])))
+        for f in folds:
+            if f["branch"] == labels[k] and f["index"] >= s0 and \
+                    a - 1e-9 <= f["value"] <= b + 1e-9:
+                end, how = f["value"], f"{f['kind']} fold"
+        for c in kind_changes:
+            if c["branch"] == labels[k] and a - 1e-9 <= c["value"] <= b + 1e-9:
+                end, how = c["value"], "kind change"
+    return {"value": end, "how": how, "label": labels[k]}
+
+
+def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
+    """The seeds and starts that make the branches of the analysis ``coarse`` at the
+    resolution of ``strip``: the same seeds (Delta, kind) where a seed made a branch; the
+    other branches' first states carried to ``strip`` by :func:`~elastocap.strip.solve.
+    refine` (identity kept)."""
+    only, starts = set(), []
+    cprob = coarse["problem"]
+    fine = ContactProblem(strip)
+    for o, br in zip(coarse["search"].origins, coarse["branches"], strict=True):
+        if o["how"] == "seed":
+            only.add((o["p"], o["seed"]))
+            continue
+        i = int(br.metadata["start_index"])
+        d = float(br.p[i])
+        cs = cprob.strip.with_(delta=d)
+        u, _r = cprob.split(br.u[i])
+        eq = solve_equilibrium(cs, u, active=cprob.held(br.u[i], d), tol=_POLISH)
+        if eq.success:
+            eq = refine_equilibrium(cs, eq, strip.with_(delta=d))
+        if eq.success:
+            starts.append((fine.join(eq.u, np.where(eq.active, eq.reactions, 0.0)), d))
+    return {"only": only, "starts": starts}
+
+
+def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=None) -> dict:
+    """Search, then the special points, kind changes, window and open branch's end.
+    ``follow`` (another resolution's analysis): trace the same branches, seeded as there,
+    instead of every seed (:func:`_follow`)."""
+    kw = _follow(follow, strip) if follow is not None else {}
+    branches, labels, res = search_contact_branches(strip, lo, hi, progress, **kw)
+    folds = _fold_list(strip, branches, labels)
+    kinds = _kind_changes(strip, branches, labels)
+    window = _window(branches, folds, kinds)
+    return {"branches": branches, "labels": labels, "search": res, "folds": folds,
+            "problem": ContactProblem(strip),
+            "kind_changes": kinds, "window": window, "events": _event_list(branches, labels),
+            "open_branch_end": _open_end(branches, labels, folds, kinds)}
 
 
 def _nearest(value, candidates):
-    return min((abs(value - c) for c in candidates), default=math.nan)
+    d = [abs(value - c) for c in candidates]
+    return min(d) if d else None
 
 
 def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", prange=None,
                            n: int | None = None, refine: bool = True,
-                           progress=None, n_refined: int | None = None) -> ContactBranchSet:
+                           progress=None, n_refined: int | None = None) -> BranchSet:
     """Search, trace and classify the branches of a strip-on-the-ground scene in Delta.
 
     Parameters
@@ -1188,76 +1268,72 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         Edges; default the scene's impact resolution (``numerics.n_edges`` or the accuracy
         preset's).
     refine : bool
-        Repeat at ``REFINE`` n edges for the error estimates (about 2-3x the time).
-    progress : callable(label, branch), optional
-        Called after each traced direction.
+        Trace the same branches again at ``REFINE`` n edges for the error estimates: seeded
+        by the seeds that made a branch at n (the others are not tried again), the other
+        branches' first states carried to the finer strip.
+    progress : callable(message), optional
+        Called with a line after each branch is traced.
     n_refined : int, optional
         Edges of the refined run (default ``round(REFINE * n)``).
 
     Returns
     -------
-    ContactBranchSet
+    elastocap.branchset.BranchSet
+        ``metadata["model"]`` is ``"strip"``; ``results`` holds ``window`` (largest Delta
+        of a stable admissible open state, smallest of a stable admissible encapsulated
+        one, each with ``error_estimate``), ``open_branch_end``, ``kind_changes`` and
+        ``events``; ``problem`` is the :class:`ContactProblem` at n edges.
     """
     lo, hi = _check(scene, parameter, prange)
     t0 = time.perf_counter()
     strip = discrete_strip_for(scene, n)
+    n_fine = None
     with threadpool_limits(limits=1, user_api="blas"):
-        branches, labels = _trace_all(strip, lo, hi, progress)
-        points = [_branch_points(strip, br) for br in branches]
-        folds, events = _special(strip, branches, labels)
-        kinds = _kind_changes(strip, branches, labels)
-        window = _window(points, folds, kinds)
-        window["open_branch_end"] = {**_open_branch_end(labels, points, folds, kinds),
-                                     "error_estimate": math.nan}
-        n_fine = None
+        a = _analyse(strip, lo, hi, progress)
+        window, end = a["window"], {**a["open_branch_end"], "error_estimate": None}
         if refine:
             n_fine = int(n_refined) if n_refined is not None else int(round(REFINE * strip.n))
             if n_fine == strip.n:
                 raise ValueError(f"n_refined: got {n_fine}; expected it to differ from n = "
                                  f"{strip.n}")
-            fine = strip.with_(n=n_fine)
-            fprog = None
-            if progress is not None:
-                def fprog(label, br):
-                    progress(f"{label} (n = {n_fine}, error estimates)", br)
-            fb, fl = _trace_all(fine, lo, hi, fprog)
-            ffolds, _ = _special(fine, fb, fl)
-            fpoints = [_branch_points(fine, br) for br in fb]
-            fkinds = _kind_changes(fine, fb, fl)
-            fwin = _window(fpoints, ffolds, fkinds)
-            fend = _open_branch_end(fl, fpoints, ffolds, fkinds)
-            oe = window["open_branch_end"]
-            oe["value_refined"], oe["how_refined"] = fend["value"], fend["how"]
-            if oe["value"] is not None and fend["value"] is not None:
-                oe["error_estimate"] = abs(oe["value"] - fend["value"])
-            for f in folds:
-                same = [g["value"] for g in ffolds if g["kind"] == f["kind"]
-                        and g["stability_change"] == f["stability_change"]]
-                f["error_estimate"] = _nearest(f["value"], same)
+            f = _analyse(strip.with_(n=n_fine), lo, hi, progress, follow=a)
+            fend = f["open_branch_end"]
+            end["value_refined"], end["how_refined"] = fend["value"], fend["how"]
+            if end["value"] is not None and fend["value"] is not None:
+                end["error_estimate"] = abs(end["value"] - fend["value"])
+            for fo in a["folds"]:
+                fo["error_estimate"] = _nearest(fo["value"], [
+                    g["value"] for g in f["folds"] if g["kind"] == fo["kind"]
+                    and g["stability_change"] == fo["stability_change"]])
             for key in ("open_max", "encapsulated_min"):
-                a, b = window[key]["value"], fwin[key]["value"]
-                if a is not None and b is not None:
-                    window[key]["error_estimate"] = abs(a - b)
-                window[key]["value_refined"] = b
-                window[key]["how_refined"] = fwin[key]["how"]
-            window["bistable_refined"] = fwin["bistable"]
-            window["width_refined"] = fwin["width"]
-        else:
-            for f in folds:
-                f["error_estimate"] = math.nan
-    bs = ContactBranchSet(scene, parameter, (lo, hi), strip.n, branches, labels, points,
-                          folds, window, events, kind_changes=kinds)
+                u, v = window[key]["value"], f["window"][key]["value"]
+                if u is not None and v is not None:
+                    window[key]["error_estimate"] = abs(u - v)
+                window[key]["value_refined"] = v
+                window[key]["how_refined"] = f["window"][key]["how"]
+            window["bistable_refined"] = f["window"]["bistable"]
+            window["width_refined"] = f["window"]["width"]
+    window["open_branch_end"] = end
+    bs = BranchSet(scene, parameter, (lo, hi), ContactProblem(strip), a["branches"],
+                   a["labels"], a["folds"])
+    bs.results = {"window": window, "kind_changes": a["kind_changes"],
+                  "events": a["events"], "not_handled": NOT_HANDLED}
     bs.metadata = {
-        "scene": scene.name,
+        "model": "strip",
+        "scene": scene.data,
+        "scene_name": scene.name,
         "parameter": parameter,
         "range": [lo, hi],
         "N": strip.n,
         "n_edges": strip.n,
         "n_edges_refined": n_fine,
-        "solver": "discrete strip (elastocap.strip.model), pseudo-arclength at fixed "
-                  "contact sets with located lift-off/touch-down events",
-        "seed_deltas": [d for d in SEED_DELTAS if lo < d < hi] or [0.5 * (lo + hi)],
-        "continuation": {k: v for k, v in DEFAULTS.items()},
+        "solver": "discrete strip (elastocap.strip.model); continuation.BranchSearch on the "
+                  "semismooth contact problem, pseudo-arclength at fixed contact sets with "
+                  "located lift-off/touch-down events",
+        "seed_deltas": list(a["search"].samples[1:-1]) if len(a["search"].samples) > 2
+        else [],
+        "search": a["search"].to_dict(),
+        "continuation": dict(DEFAULTS),
         "contact_event_tol": "reaction or gap at a located event below 1e-13 (force, length)",
         "version": __version__,
         "wall_time_s": time.perf_counter() - t0,
@@ -1265,7 +1341,12 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
     return bs
 
 
-def open_branch_end(bs: ContactBranchSet) -> dict:
+def window(bs: BranchSet) -> dict:
+    """The window of a strip branch set (``bs.results["window"]``)."""
+    return bs.results["window"]
+
+
+def open_branch_end(bs: BranchSet) -> dict:
     """Where the state a quasi-static spreading lands on stops existing or being stable.
 
     The branch traced up in Delta from the deposition at the lowest seed: the largest Delta
@@ -1275,37 +1356,78 @@ def open_branch_end(bs: ContactBranchSet) -> dict:
     ``inadmissible`` at a traced point, ``range`` (the stretch reaches the range's end).
     ``value`` is None when there is no such branch (``how`` says why).
     """
-    return _open_branch_end(bs.labels, bs.points, bs.folds, bs.kind_changes)
+    return _open_end(bs.branches, bs.labels, bs.folds, bs.results.get("kind_changes", []))
 
 
-def _open_branch_end(labels, points, folds, kind_changes) -> dict:
-    labs = [k for k, lab in enumerate(labels) if lab.startswith("deposition")
-            and lab.endswith("up")]
-    if not labs:
-        return {"value": None, "how": "no deposition branch"}
-    k = labs[0]
-    pts = points[k]
-    ok = (pts["index"] == 0) & (pts["encapsulated"] == 0.0) & (pts["admissible"] == 1.0)
-    if not ok[0]:
-        return {"value": None, "how": "deposition not a stable open state", "label": labels[k]}
-    stop = int(np.argmin(ok)) if not ok.all() else ok.size
-    d = pts["delta"][:stop]
-    end = float(d.max())
-    if stop == ok.size:
-        how = "range"
-    elif pts["index"][stop] != 0:
-        how = "stability lost"
-    elif pts["encapsulated"][stop] == 1.0:
-        how = "kind change"
-    else:
-        how = "inadmissible"
-    # the located special point between the last stable open point and the next one
-    if stop < ok.size:
-        a, b = sorted((end, float(pts["delta"][stop])))
-        for f in folds:
-            if f["branch"] == labels[k] and a - 1e-9 <= f["value"] <= b + 1e-9:
-                end, how = f["value"], f"{f['kind']} fold"
-        for c in kind_changes:
-            if c["branch"] == labels[k] and a - 1e-9 <= c["value"] <= b + 1e-9:
-                end, how = c["value"], "kind change"
-    return {"value": end, "how": how, "label": labels[k]}
+def solved_crossings(strip: DiscreteStrip, branches):
+    """Each place a traced segment crosses the strip's Delta, solved there exactly.
+
+    Yields (branch, point index j, Equilibrium): Newton at the segment's contact set from
+    its traced point j nearest the crossing (converged or not: check ``success``).
+    """
+    d0 = strip.delta
+    for br in branches:
+        N = br.u.shape[1] // 2
+        for sl, held in segments_of(br):
+            d = br.p[sl]
+            if d.size < 2 or not d.min() <= d0 <= d.max():
+                continue
+            for i in range(d.size - 1):
+                if d[i] == d[i + 1] or (d[i] - d0) * (d[i + 1] - d0) > 0.0:
+                    continue
+                j = sl.start + (i if abs(d[i] - d0) <= abs(d[i + 1] - d0) else i + 1)
+                yield br, j, solve_equilibrium(strip, br.u[j][:N], active=held, tol=1e-11,
+                                               max_iter=30)
+
+
+# --------------------------------------------------------------------------- the model
+def _rebuild_problem(scene: Scene, meta: dict) -> ContactProblem:
+    return ContactProblem(discrete_strip_for(scene, int(meta["n_edges"])))
+
+
+def _plot(bs, path=None):
+    from elastocap.strip.plot import plot_contact_branch_set
+
+    return plot_contact_branch_set(bs, path)
+
+
+def report_lines(bs: BranchSet) -> list[str]:
+    """Human-readable report (the CLI without ``--json``)."""
+    m = bs.metadata
+    n, nf = m["n_edges"], m.get("n_edges_refined")
+    out = [f"{bs.scene.name}: {len(bs.branches)} branches in {bs.parameter} over "
+           f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (discrete strip, n = {n}"
+           f" edges, {len(bs.results.get('events', []))} contact events, "
+           f"{m['wall_time_s']:.1f} s)"]
+
+    def err(e):
+        if nf is None:
+            return "(not estimated)"
+        return f"± {e:.1e}" if e is not None else f"(no match at n = {nf})"
+
+    for f in bs.folds:
+        what = "smooth fold " if f["kind"] == "smooth" else \
+            f"contact fold ({f['event']} of node {f['node']})"
+        out.append(f"  {what:38s} Delta {f['value']:.9f} {err(f['error_estimate']):22s}"
+                   f" stability {f['stability_change']}  measure {f['measure']:+.4f}"
+                   + ("" if f["admissible"] else "  (strip crosses itself)"))
+    w = bs.results.get("window", {})
+    for key, name in (("open_max", "stable open state up to"),
+                      ("encapsulated_min", "stable encapsulated state from"),
+                      ("open_branch_end", "deposition's open branch ends at")):
+        v = w.get(key)
+        if v and v["value"] is not None:
+            out.append(f"  {name:32s} Delta {v['value']:.9f} {err(v['error_estimate'])}")
+    line = f"  bistable at n = {n}: {w.get('bistable')}"
+    if w.get("width") is not None:
+        line += f" (width {w['width']:+.2e})"
+    if nf is not None:
+        wr = w.get("width_refined")
+        line += f"; at n = {nf}: {w.get('bistable_refined')}" + (
+            f" (width {wr:+.2e})" if wr is not None else "")
+    out.append(line)
+    return out
+
+
+#: The strip on the ground as a model of :class:`elastocap.branchset.BranchSet`.
+STRIP = BranchModel("strip", _rebuild_problem, _plot, report_lines)

@@ -131,3 +131,33 @@ def test_fold_crossings_of_a_cusp_family():
     (u, p), = pts
     expected = 2 * (2.0 / 3) ** 1.5
     assert abs(abs(p) - expected) < 1e-10 and np.sign(p) == np.sign(f0.p)
+
+
+def test_a_continuer_makes_the_branches_and_the_search_records_them():
+    # min(u, u - p) = 0 has the one solution u = max(p, 0), with a corner at p = 0 where
+    # the active piece changes; a continuer that knows the pieces returns it whole
+    calls = []
+
+    def continuer(problem, u, p, settings, events=None, stop_on=()):
+        calls.append((settings.direction, settings.p_min, settings.p_max))
+        ps = np.linspace(settings.p_min, settings.p_max, 31)
+        m = ps.size
+        return C.Branch(p=ps, u=np.maximum(ps, 0.0)[:, None], tangent=None, ds=np.zeros(m),
+                        newton_iterations=np.zeros(m, dtype=int),
+                        stability=np.zeros(m, dtype=int), observables={}, special_points=[],
+                        status=C.PARAMETER_BOUND, message="two pieces joined at p = 0")
+
+    prob = C.FunctionProblem(lambda u, p: np.minimum(u, u - p),
+                             jacobian=lambda u, p: np.eye(1),
+                             dfdp=lambda u, p: -(u - p < u).astype(float))
+    prob.seeds = lambda p: [np.array([p + 0.3]), np.array([max(p, 0.0) + 0.2])]
+    res = C.BranchSearch(prob, S, C.SearchSettings(samples=3, switch=False,
+                                                   neighbour_seeds=False),
+                         continuer=continuer).run()
+    # one branch, made once by the continuer (both ways: direction 0, the whole range)
+    assert len(res.branches) == 1 and calls == [(0, -1.0, 2.0)]
+    assert res.branches[0].metadata["origin"]["how"] == "seed"
+    # its crossings of every sample were recorded and Newton-corrected: max(p, 0) there,
+    # so every later seed was deflated against it and none made a second branch
+    for pk, known in zip(res.samples, res.known, strict=True):
+        assert len(known) == 1 and abs(known[0][0] - max(pk, 0.0)) < 1e-12

@@ -24,6 +24,7 @@ from elastocap.strip.trace import (
     CHORD_STOP,
     DEFAULTS,
     open_branch_end,
+    segments_of,
     trace_contact_branches,
     trace_discrete_branch,
 )
@@ -42,17 +43,17 @@ def x3():
 
 def _states_at(bs, delta):
     """Every traced state whose segment crosses ``delta``, Newton-solved there exactly."""
-    S = DiscreteStrip(bs.n, L, bs.scene.distance_from_end, delta, A, GAMMA)
+    S = DiscreteStrip(bs.metadata["n_edges"], L, bs.scene.distance_from_end, delta, A, GAMMA)
     out = []
     for br in bs.branches:
-        for seg in br.segments:
-            d = seg.delta
+        for sl, held in segments_of(br):
+            d = br.p[sl]
             for i in range(d.size - 1):
                 if d[i] != d[i + 1] and (d[i] - delta) * (d[i + 1] - delta) <= 0.0:
-                    j = i if abs(d[i] - delta) < abs(d[i + 1] - delta) else i + 1
-                    eq = solve_equilibrium(S, seg.u[j], active=seg.active, tol=1e-11)
+                    j = sl.start + (i if abs(d[i] - delta) < abs(d[i + 1] - delta) else i + 1)
+                    eq = solve_equilibrium(S, br.u[j][: S.size], active=held, tol=1e-11)
                     assert eq.success
-                    out.append((int(seg.index[j]), eq))
+                    out.append((int(br.stability[j]), eq))
     return S, out
 
 
@@ -76,7 +77,7 @@ def test_unstable_branch_passes_through_the_string_method_saddle(x3):
 
 
 def test_window_at_x3_is_bistable_and_its_ends_are_special_points(x3):
-    w = x3.window
+    w = x3.results["window"]
     assert w["bistable"]
     # the open state ends at a contact fold where the index goes 0 -> 1 (nonsmooth fold)
     top = w["open_max"]["value"]
@@ -95,7 +96,7 @@ def test_window_at_x3_is_bistable_and_its_ends_are_special_points(x3):
     # the summary lists every branch, with their ends
     summ = x3.summary()
     assert summ["parameter"] == "drop.wetted_length" and len(summ["branches"]) >= 2
-    assert all(b["status"] in ("parameter_bound", "contact_lines_meet")
+    assert all(set(b["end_status"]) <= {"parameter_bound", "contact_lines_meet"}
                for b in summ["branches"]), [b["message"] for b in summ["branches"]]
 
 
@@ -104,9 +105,9 @@ def test_the_deposition_branch_ends_at_a_located_fold(x3):
     # seed (Delta = 0.4) stays stable and open up to a located fold, at or below the window's
     # open end (the largest Delta of a stable open state on any branch)
     end = open_branch_end(x3)
-    assert end["label"] == "deposition at Delta = 0.4, up"
+    assert end["label"] == "deposition at Delta = 0.4"
     assert end["how"] in ("contact fold", "smooth fold"), end
-    assert 0.4 < end["value"] <= x3.window["open_max"]["value"]
+    assert 0.4 < end["value"] <= x3.results["window"]["open_max"]["value"]
     f = [f for f in x3.folds if f["value"] == end["value"]]
     assert f and f[0]["stability_change"][0] == 0
     # independent: the descent from the flat strip 0.05 below the end lands on that branch
@@ -117,22 +118,57 @@ def test_the_deposition_branch_ends_at_a_located_fold(x3):
 
 
 def test_save_load_round_trip(x3, tmp_path):
-    from elastocap.jsonutil import jsonable
-    from elastocap.strip.trace import ContactBranchSet
+    from elastocap.branchset import BranchSet
 
     x3.save(tmp_path)
-    back = ContactBranchSet.load(tmp_path)
-    assert json.dumps(jsonable(back.summary()), sort_keys=True) == \
-        json.dumps(jsonable(x3.summary()), sort_keys=True)
+    back = BranchSet.load(tmp_path)
+    assert json.dumps(back.summary(), sort_keys=True) == json.dumps(x3.summary(),
+                                                                   sort_keys=True)
     assert back.report() == x3.report() and back.labels == x3.labels
-    for a, b in zip(x3.points, back.points, strict=True):
-        assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
     for a, b in zip(x3.branches, back.branches, strict=True):
-        assert np.array_equal(np.concatenate([s.u for s in a.segments]),
-                              np.concatenate([s.u for s in b.segments]))
-    assert back.events == x3.events and back.scene.data == x3.scene.data
+        assert np.array_equal(a.u, b.u) and np.array_equal(a.p, b.p)
+        assert np.array_equal(a.stability, b.stability)
+        assert a.observables.keys() == b.observables.keys()
+        assert all(np.array_equal(a.observables[k], b.observables[k]) for k in a.observables)
+        assert a.metadata["segments"] == b.metadata["segments"]
+    assert back.results["events"] == x3.results["events"]
+    assert back.results["window"] == x3.summary()["window"]
+    assert back.scene.data == x3.scene.data
+    assert back.problem.strip.n == 60
+    # the loaded branches solve the rebuilt problem (the semismooth KKT residual)
+    br = back.branches[0]
+    assert np.max(np.abs(back.problem.residual(br.u[5], br.p[5]))) < 1e-8
     assert back.plot(tmp_path / "again.png") is not None
     assert (tmp_path / "again.png").stat().st_size > 1000
+
+
+def test_branches_json_has_numbers_or_null(x3, tmp_path):
+    # JSON numbers are numbers or null (no "nan" strings, no NaN literals)
+    x3.save(tmp_path)
+    text = (tmp_path / "branches.json").read_text()
+    data = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-finite {c} in JSON"))
+
+    def walk(v):
+        if isinstance(v, dict):
+            for x in v.values():
+                walk(x)
+        elif isinstance(v, list):
+            for x in v:
+                walk(x)
+        else:
+            assert v not in ("nan", "inf", "-inf")
+
+    walk(data)
+    assert data["window"]["open_max"]["error_estimate"] is None  # not refined: not estimated
+
+
+def test_cli_plot_redraws_a_strip_branches_folder(x3, tmp_path, capsys):
+    x3.save(tmp_path / "b")
+    assert main(["plot", str(tmp_path / "b"), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert rep["kind"] == "branches" and rep["branches"] == len(x3.branches)
+    png = tmp_path / "b" / "branches.png"
+    assert png.is_file() and png.stat().st_size > 1000
 
 
 def test_corners_where_a_contact_point_crosses_a_node_are_passed():
@@ -200,8 +236,9 @@ def test_cli_branches_fig3_strip_traces_with_contact(tmp_path, capsys):
             "numerics.n_edges=40", "--json", "--out", str(out)]
     assert main(argv) == 0
     rep = json.loads(capsys.readouterr().out)
-    assert rep["solver"].startswith("discrete strip")
-    assert rep["folds"] and rep["events"] > 10
+    assert rep["metadata"]["solver"].startswith("discrete strip")
+    assert rep["metadata"]["model"] == "strip"
+    assert rep["folds"] and len(rep["events"]) > 10
     md = rep["metadata"]
     assert md["n_edges"] == 40 and md["n_edges_refined"] == 60 and md["version"]
     # the window ends carry a discretization error estimate from the refined run
@@ -212,9 +249,10 @@ def test_cli_branches_fig3_strip_traces_with_contact(tmp_path, capsys):
     files = [out / f for f in ("branches.json", "branches.png", "branch_0.npz")]
     assert all(f.exists() for f in files)
     with np.load(out / "branch_0.npz") as z:
-        meta = json.loads(str(z["metadata"]))
+        meta = json.loads(str(z["metadata_json"]))["metadata"]
         assert meta["scene"]["drop"]["distance_from_end"] == 2.0
-        assert z["u"].shape[0] == z["delta"].shape[0] == z["index"].shape[0]
+        assert z["u"].shape[0] == z["p"].shape[0] == z["stability"].shape[0]
+        assert z["u"].shape[1] == 2 * 41  # the state and one reaction per node
     # the same numbers twice (reproducible)
     again = trace_contact_branches(load_scene("fig3-strip", {
         "drop.distance_from_end": 2.0, "numerics.n_edges": 40}), refine=False)
