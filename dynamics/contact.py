@@ -12,30 +12,33 @@ Formulation (both methods)
 Each constraint enters the position projection of a step *linearised at the start of the
 step*, exactly as SHAKE linearises the edge-length constraints there: with ``u0`` the
 closest point of segment ``j`` to node ``i`` and ``n0`` the unit vector from that point to
-the node, both at the old positions ``xo``,
+the node, both at the old positions ``xo``::
 
     g(x) = n0 . (x_i - (1 - u0) x_j - u0 x_{j+1}) - d >= 0,
 
 a half space whose side is fixed by the old state, so a node cannot tunnel through a
-segment within one step whatever its speed, and ``|x_i - p| >= n0 . (x_i - p) >= d``: the
-true distance never falls below ``d``.  The projection
+segment within one step whatever its speed; the true distance to the old closest point is
+``|x_i - p| >= n0 . (x_i - p) >= d``, to the segment it can fall short of ``d`` by a
+second-order amount while the contact rotates (restored at the next step).  The
+projection::
 
     x = x* + W G_e(xo)^T lam + W C^T mu,    phi_e(x) = 0,   g(x) >= 0,  mu >= 0,  mu g = 0
 
 (``phi_e`` the edge lengths, ``C`` the rows of the active contacts) is solved by Newton on
-``(lam, mu)`` with the contact rows eliminated by a Schur complement (:func:`_bordered_solve`:
-one tridiagonal factorisation, one solve per active contact, a dense solve of the
-contacts' capacitance matrix), inside an active-set loop (add the violated pairs, drop
-those with ``mu < 0``).  The velocity stage is the same with the contact rows at the new
+``(lam, mu)`` with the contact rows eliminated by a Schur complement (``_bordered_solve``:
+one tridiagonal factorisation, one solve per candidate contact, the contacts' dense
+capacitance matrix), whose complementarity problem is solved by projected Gauss-Seidel;
+the candidates are the listed pairs within twice the deepest penetration, and a pair
+left out that ends violated joins them.  The velocity stage is the same with the contact rows at the new
 positions: relative normal velocity ``>= 0`` where the rod touches (restitution 0,
 frictionless), together with the edges' ``G v = 0`` (RATTLE) or with the edges' stretching
 rates left unchanged (midpoint); an M-orthogonal projection onto a convex cone, so it never
 adds kinetic energy.  The contact forces are pairwise and opposite (node against the two
 nodes of the segment, weights ``1, -(1 - u), -u``): momentum is conserved to round-off.
-Redundant contacts (two stacked layers touch node-on-segment both ways; a node at a vertex
-is closest to both segments) make the capacitance matrix singular but consistent: it is
-solved with a relative regularisation of ``REGULARISATION`` (the positions are unique, the
-split of the multipliers is not).
+Redundant contacts (two stacked layers touch node-on-segment both ways) make the
+capacitance matrix singular: projected Gauss-Seidel copes with that (the positions are
+unique, the split of the multipliers is not); a node closest to a vertex is held by one of
+the two segments that share it, not both.
 
 Broad phase
 -----------
@@ -96,8 +99,11 @@ TOL_FLOOR = 4e-16
 #: Relative diagonal shift of the contacts' capacitance matrix (see the module notes).
 REGULARISATION = 1e-11
 
+#: Solves of the velocity stage's complementarity problem from the remaining residual.
+VELOCITY_REFINEMENTS = 3
+
 #: Sweeps of projected Gauss-Seidel on the contacts' complementarity problem.
-PGS_MAX_SWEEPS = 5000
+PGS_MAX_SWEEPS = 2000
 
 # rows of meta (int64)
 _NPAIRS, _VALID, _REBUILDS, _NACT, _MAXACT, _STEPS, _ROUNDS, _FAIL, _FORCES, _NVEL = range(10)
@@ -541,13 +547,18 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
         # the equality rows), w nu = 0; projected Gauss-Seidel, which copes with redundant
         # contacts (the positions are unique, the multipliers need not be)
         q = vec[6]
+        qmax = 0.0
+        for k in range(na):
+            qmax = max(qmax, abs(dm[k]))
         for k in range(na):
             acc = -dm[k]
             for l in range(na):
                 acc -= S[k, l] * mu0[l]
             q[k] = acc
             dm[k] = mu0[k]
-        conv = False
+        # to the tolerance, or a millionth of the initial residual: the Newton iteration
+        # around this solve refines what is left
+        tol = max(pgs_tol, 1e-6 * qmax)
         for sweep in range(PGS_MAX_SWEEPS):
             ch = 0.0
             for k in range(na):
@@ -563,11 +574,8 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
                 c_ = abs(new - dm[k]) * skk
                 ch = c_ if c_ > ch else ch
                 dm[k] = new
-            if ch <= pgs_tol:
-                conv = True
+            if ch <= tol:
                 break
-        if not conv:
-            return False
         for k in range(na):
             dm[k] -= mu0[k]
     else:
@@ -961,23 +969,31 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
     dl = vec[10]
     dm = vec[11]
     bm = ck[8]
-    for e in range(m):
-        if keep_rates:
-            rhs_e[e] = 0.0
-        else:
-            rhs_e[e] = -(R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1]))
     for k in range(nc):
-        i = ci[k, 0]
-        j = ci[k, 1]
-        u = cu[k]
-        rc[k] = -(cn[k, 0] * (v[i, 0] - (1.0 - u) * v[j, 0] - u * v[j + 1, 0])
-                  + cn[k, 1] * (v[i, 1] - (1.0 - u) * v[j, 1] - u * v[j + 1, 1]))
         bm[k] = 0.0
-    if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, True, bm, eq,
-                           0.1 * tol_v):
-        meta[_FAIL] = 3
-        return -1
-    _apply(v, w, R, dl, nc, ci, cu, cn, dm, 1.0)
+    rates = vec[12]
+    for e in range(m):
+        rates[e] = R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1])
+    # the complementarity problem is solved iteratively: a few refinements from the
+    # remaining residual
+    for rf in range(VELOCITY_REFINEMENTS):
+        for e in range(m):
+            r = R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1])
+            rhs_e[e] = (rates[e] - r) if keep_rates else -r
+        for k in range(nc):
+            i = ci[k, 0]
+            j = ci[k, 1]
+            u = cu[k]
+            rc[k] = -(cn[k, 0] * (v[i, 0] - (1.0 - u) * v[j, 0] - u * v[j + 1, 0])
+                      + cn[k, 1] * (v[i, 1] - (1.0 - u) * v[j, 1] - u * v[j + 1, 1]))
+        if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, True, bm,
+                               eq, 0.1 * tol_v):
+            meta[_FAIL] = 3
+            return -1
+        _apply(v, w, R, dl, nc, ci, cu, cn, dm, 1.0)
+        for k in range(nc):
+            bm[k] += dm[k]
+            dm[k] = bm[k]
     na = 0
     for k in range(nc):
         if dm[k] != 0.0:
