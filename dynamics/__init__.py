@@ -25,6 +25,7 @@ from .effects import (
     Gravity,
     Ground,
     PointLoad,
+    SelfContact,
 )
 from .rattle import DT_BOUND_C, stable_dt
 from .reference import euler_bernoulli_omega
@@ -47,6 +48,7 @@ __all__ = [
     "PointLoad",
     "DistributedLoad",
     "Clamp",
+    "SelfContact",
     "bending_energy",
     "bending_gradient",
     "bending_force_add",

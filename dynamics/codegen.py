@@ -45,8 +45,9 @@ def kernel_ref(effect):
 def stepper_depends(refs):
     """:func:`dynamics.cache.dependency_digest` of what a generated stepper uses: the
     ``dynamics`` kernels and the effect kernels' modules with what they use."""
-    return dependency_digest(["dynamics.bending", "dynamics.constraints", "dynamics.effects",
-                              "dynamics.rod", *(mod for _, mod, _ in refs)])
+    return dependency_digest(["dynamics.bending", "dynamics.constraints", "dynamics.contact",
+                              "dynamics.effects", "dynamics.rod",
+                              *(r[1] for r in refs)])
 
 
 
@@ -54,6 +55,33 @@ def stepper_depends(refs):
 #: Decorator of the generated dispatch functions: inlined into their callers (a call with
 #: its arrays reference-counted would cost more than the kernel calls it holds).
 _DISPATCH = '@numba.njit(cache=True, inline="always")'
+
+
+#: Functions every method's loop uses the same way, generated into each module (inlined).
+#: ``_at_rest(ke, dt, rest)``: the rest criterion of :class:`dynamics.RestCriterion`
+#: (``rest = [threshold, duration, time below so far]``), advanced by one step of kinetic
+#: energy ``ke``; True once the rod has stayed below the threshold for the duration.
+#: ``_record_constraint_error(x, edge_len, diag)``: the relative edge-length error of the
+#: final state into ``diag[0]`` (the largest seen).
+_SHARED = '''
+@numba.njit(cache=True, inline="always")
+def _at_rest(ke, dt, rest):
+    if rest[0] > 0.0:
+        if ke < rest[0]:
+            rest[2] += dt
+            if rest[2] >= rest[1]:
+                return True
+        else:
+            rest[2] = 0.0
+    return False
+
+
+@numba.njit(cache=True, inline="always")
+def _record_constraint_error(x, edge_len, diag):
+    err0, edge = _constraint_error(x, edge_len)
+    if err0 > diag[0]:
+        diag[0] = err0
+'''
 
 
 def render(template: str, refs, imports: str = "") -> str:
@@ -69,8 +97,9 @@ def render(template: str, refs, imports: str = "") -> str:
     refs : sequence of (kind, module, name, stiffness, native)
         Per effect: its kind, where its kernel is imported from, the (module, name) of its
         optional stiffness hook (or None), and whether the method handles the effect
-        itself instead of calling its kernel (the midpoint method's ground); a native
-        constraint's height is read by ``_ground_height``.
+        itself instead of calling its kernel: False, True (a ground, the midpoint
+        method's; its height is read by ``_ground_height``) or ``"contact"`` (the rod's
+        self-contact, both methods; its thickness is read by ``_contact_thickness``).
     imports : str
         The method's own import lines.
 
@@ -87,19 +116,25 @@ def render(template: str, refs, imports: str = "") -> str:
         ``U`` and ``C``); returns the total rank.
     ``_ground_height(t$pargs) -> float``
         The height of the natively handled ground (0.0 without one).
+    ``_contact_thickness(t$pargs) -> float``
+        The thickness of the self-contact (0.0 without one).
+
+    ``_at_rest(ke, dt, rest) -> bool`` and ``_record_constraint_error(x, edge_len, diag)``
+        The rest criterion and the final constraint-error check (:data:`_SHARED`).
 
     Flags: ``HAS_DAMPING``, ``HAS_CONSTRAINTS`` (non-native), ``HAS_GROUND`` (native),
-    ``HAS_STIFFNESS``.
+    ``HAS_STIFFNESS``, ``HAS_CONTACT`` (native self-contact).  Without a self-contact the
+    template's ``if HAS_CONTACT:`` blocks are compiled out (a global constant to numba).
     """
     import string
 
     kernel_imports, P, F = [], [], []
-    forces, damps, cons, stiff, ground = [], [], [], [], []
+    forces, damps, cons, stiff, ground, contact = [], [], [], [], [], []
     for j, (kind, mod, name, hook, native) in enumerate(refs):
         p = f"p{j}"
         P.append(p)
         if native:
-            ground.append(p)
+            (contact if native == "contact" else ground).append(p)
             continue
         kernel_imports.append(f"from {mod} import {name} as _k{j}")
         if kind == "force":
@@ -124,6 +159,7 @@ def render(template: str, refs, imports: str = "") -> str:
     head = [
         "import numba",
         "import numpy as np",
+        "from dynamics.constraints import constraint_error as _constraint_error",
         "from dynamics.effects import STIFFNESS_RANK",
         imports.rstrip(),
         *kernel_imports,
@@ -132,6 +168,7 @@ def render(template: str, refs, imports: str = "") -> str:
         f"HAS_CONSTRAINTS = {bool(cons)}",
         f"HAS_GROUND = {bool(ground)}",
         f"HAS_STIFFNESS = {bool(stiff)}",
+        f"HAS_CONTACT = {bool(contact)}",
         "", "",
         _DISPATCH,
         f"def _external_forces(x, v, t, edge_len, mass, F, energy{fargs}):",
@@ -149,5 +186,10 @@ def render(template: str, refs, imports: str = "") -> str:
         f"def _ground_height(t{pargs}):",
         f"    return {ground[0] + '[0]' if ground else '0.0'}",
         "", "",
+        _DISPATCH,
+        f"def _contact_thickness(t{pargs}):",
+        f"    return {contact[0] + '[0]' if contact else '0.0'}",
+        "", "",
+        _SHARED,
     ]
     return "\n".join(head) + string.Template(template).substitute(pargs=pargs, fargs=fargs)

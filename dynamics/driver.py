@@ -26,6 +26,8 @@ A method is a module with a class ``Run``:
     The message of a failed run (where, what, what to try).
 ``run.stats() -> dict``
     The method's counters (see :data:`STATS_KEYS`).
+``run.contact_forces() -> ndarray or None``
+    The self-contact forces of the last step (None without a self-contact).
 
 Built-in methods: ``"rattle"`` (:mod:`dynamics.rattle`, explicit, symplectic) and
 ``"midpoint"`` (:mod:`dynamics.midpoint`, the constrained implicit midpoint rule).
@@ -167,6 +169,9 @@ class SimulationResult:
     stats : dict
         Named diagnostics (:data:`STATS_KEYS` and the method's own keys).
     events_fired : list of (time, effect, param_index, value)
+    contact_forces : ndarray, shape (n_nodes, 2), or None
+        With a :class:`~dynamics.SelfContact`: the self-contact force on every node, the
+        mean over the last step (force units; they sum to zero); None without one.
     """
 
     times: np.ndarray
@@ -181,6 +186,7 @@ class SimulationResult:
     dt: float
     stats: dict
     events_fired: list = field(default_factory=list)
+    contact_forces: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -212,6 +218,8 @@ class SimulationResult:
                   "velocities": self.velocities}
         for k, e in self.energies.items():
             arrays["energy__" + k] = e
+        if self.contact_forces is not None:
+            arrays["contact_forces"] = self.contact_forces
         if context is not None:
             arrays["context"] = np.array(json.dumps(context))
         np.savez(path, meta=np.array(json.dumps(self.to_dict())), **arrays)
@@ -233,13 +241,15 @@ class SimulationResult:
             meta = json.loads(str(f["meta"]))
             energies = {k[len("energy__"):]: f[k] for k in f.files if k.startswith("energy__")}
             times, pos, vel = f["times"], f["positions"], f["velocities"]
+            cf = f["contact_forces"] if "contact_forces" in f.files else None
         absent = [k for k in ("status", "success", "message", "method", "t_final", "dt",
                               "stats", "events_fired") if k not in meta]
         if absent:
             raise ValueError(f"{path}: metadata lacks {absent}")
         meta.pop("n_frames", None)
         meta["events_fired"] = [tuple(e) for e in meta["events_fired"]]
-        return cls(times=times, positions=pos, velocities=vel, energies=energies, **meta)
+        return cls(times=times, positions=pos, velocities=vel, energies=energies,
+                   contact_forces=cf, **meta)
 
 
 # ----------------------------------------------------------------------------- checks
@@ -471,4 +481,5 @@ def simulate(rod, effects=(), *, method="rattle", dt, t_end, frames=None, events
         dt=dt,
         stats=stats,
         events_fired=fired,
+        contact_forces=run.contact_forces(),
     )

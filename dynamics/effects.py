@@ -42,6 +42,11 @@ from the effect's name or its position in the list.  Optional attributes:
     (perfectly inelastic).  RATTLE calls its kernel like any constraint's; the midpoint
     method (:mod:`dynamics.midpoint`) does not call it and puts the ground into its Newton
     system instead (it needs the index to be 0).  :class:`Ground` sets it.
+``self_contact_thickness_param`` : int, of a constraint effect
+    Declares the effect the rod's self-contact with thickness
+    ``params[self_contact_thickness_param]`` (must be 0): both methods handle it
+    themselves (:mod:`dynamics.contact`) and never call its kernel.
+    :class:`SelfContact` sets it.
 
 Optional hook of a force effect, read by the midpoint method only (RATTLE needs no
 derivatives):
@@ -66,7 +71,8 @@ derivatives):
     converges more slowly.
 
 Built in: :class:`Gravity`, :class:`PointLoad`, :class:`DistributedLoad` (forces),
-:class:`Damping` (damping), :class:`Ground`, :class:`Clamp` (constraints).
+:class:`Damping` (damping), :class:`Ground`, :class:`Clamp`, :class:`SelfContact`
+(constraints).
 
 An external force effect, e.g. a drop with ``params = [area, s1, s2, gamma]``::
 
@@ -108,6 +114,7 @@ __all__ = [
     "Damping",
     "Ground",
     "Clamp",
+    "SelfContact",
     "KINDS",
     "STIFFNESS_BAND",
     "STIFFNESS_RANK",
@@ -334,6 +341,13 @@ def clamp_kernel(x, v, t, params, edge_len, winv, stage):
             v[j, 1] = 0.0
 
 
+@numba.njit(cache=True)
+def self_contact_kernel(x, v, t, params, edge_len, winv, stage):
+    """The kernel slot of :class:`SelfContact`: never called (the methods enforce
+    self-contact inside their projections, :mod:`dynamics.contact`); does nothing."""
+    return None
+
+
 # ----------------------------------------------------------------------------- classes
 
 
@@ -470,3 +484,39 @@ class Clamp(Effect):
         fix = 0.0 if angle is None else 1.0
         theta = 0.0 if angle is None else float(angle)
         super().__init__(name, [node, px, pz, fix, theta])
+
+
+class SelfContact(Effect):
+    """The rod cannot pass through itself: a tube of diameter ``thickness``.
+
+    Non-penetration is a set of unilateral constraints, frictionless, with restitution 0
+    (as the ground's): every node stays at least ``thickness`` away from every segment
+    more than :func:`dynamics.contact.exclusion_length` (``pi thickness / 2``) away from it
+    along the rod.  Both methods enforce it inside their position and velocity projections
+    to the tolerance of the edge lengths (:mod:`dynamics.contact`); the contact forces of
+    the last step are ``SimulationResult.contact_forces``.  A run without this effect
+    generates no contact code.
+
+    Parameters
+    ----------
+    thickness : float
+        Diameter of the rod (length units), > 0.  The initial state should respect it.
+    name : str, optional
+    """
+
+    kind = "constraint"
+    param_names = ("thickness",)
+    kernel = self_contact_kernel
+    self_contact_thickness_param = 0
+
+    def __init__(self, thickness, name="self_contact"):
+        if not (thickness > 0 and math.isfinite(thickness)):
+            raise ValueError(f"SelfContact thickness must be > 0 and finite, got {thickness!r}")
+        super().__init__(name, [thickness])
+
+
+def is_self_contact(effect) -> bool:
+    """Whether an effect is the rod's self-contact, by the effect protocol (it declares
+    ``self_contact_thickness_param``; :class:`SelfContact` does)."""
+    return (getattr(effect, "kind", None) == "constraint"
+            and getattr(effect, "self_contact_thickness_param", None) is not None)

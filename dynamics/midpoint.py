@@ -95,7 +95,8 @@ import numpy as np
 
 from .cache import dependency_digest, is_compiled, load_module
 from .codegen import kernel_ref, render, stepper_depends
-from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK
+from .contact import check_self_contact, contact_failure, contact_stats, new_contact_work
+from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK, is_self_contact
 from .rattle import stable_dt
 
 __all__ = [
@@ -1203,7 +1204,7 @@ def _solve(ab, piv, rhs, lr):
 
 @numba.njit(cache=True)
 def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, diag,
-          opts, lr$pargs):
+          opts, lr, ck$pargs):
     n = x.shape[0]
     x0 = ws[0]
     v0 = ws[1]
@@ -1342,6 +1343,7 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
     if not ok:
         diag[5] = rmax
         diag[8] = max_age
+        diag[11] = 0.0
         return -1
     diag[8] += 1
     if it > diag[2]:
@@ -1362,13 +1364,38 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
                 x[i, 1] = z0
                 v[i, 1] = 0.0
                 acc[i, 1] = 0.0
+    if HAS_CONTACT:
+        # self-contact after the implicit step: project the new positions onto the edge
+        # lengths and the non-penetration constraints (linearised at x0), the velocities
+        # following the scheme (v1 = 2 D / dt - v0), then restitution 0 where the rod
+        # touches (the contacts pushed end at rest relative to each other, as held ground
+        # nodes do); ground-held coordinates stay held
+        th = _contact_thickness(t + dt$pargs)
+        wc = ck[15][2]
+        xs = ck[15][0]
+        for i in range(n):
+            wc[i, 0] = winv[i, 0]
+            wc[i, 1] = 0.0 if (HAS_GROUND and held[i] != 0.0) else winv[i, 1]
+            xs[i, 0] = x[i, 0]
+            xs[i, 1] = x[i, 1]
+        cst = contact_positions(x0, x, wc, edge_len, ck[11][12], th, ck)
+        if cst < 0:
+            diag[11] = 1.0
+            diag[8] = max_age
+            return -1
+        if cst > 0:
+            for i in range(n):
+                for k in range(2):
+                    v[i, k] += 2.0 * (x[i, k] - xs[i, k]) * inv_dt
+        if contact_velocities(x, v, wc, edge_len, th, dt, 2.0, True, True, ck) < 0:
+            diag[12] += 1.0
     _damp(x, v, t + half, edge_len, mass, half$pargs)
     return it
 
 
 @numba.njit(cache=True)
 def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy,
-        diag, rest, opts, lr$pargs):
+        diag, rest, opts, lr, ck$pargs):
     n = x.shape[0]
     acc = ws[5]
     xb = ws[10]
@@ -1387,7 +1414,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
         mub[:] = mu
         hb[:] = held
         st = _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, diag,
-                   opts, lr$pargs)
+                   opts, lr, ck$pargs)
         if st < 0:
             # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps
             for level in range(1, MAX_HALVINGS + 1):
@@ -1401,7 +1428,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
                 h = dt / sub
                 for j in range(sub):
                     st = _step(x, v, t + j * h, h, edge_len, mass, winv, B, ws, mu, ab, piv,
-                               rhs, energy, diag, opts, lr$pargs)
+                               rhs, energy, diag, opts, lr, ck$pargs)
                     if st < 0:
                         break
                 if st >= 0:
@@ -1433,17 +1460,10 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
         if not np.isfinite(ke):
             status = 3
             break
-        if rest[0] > 0.0:
-            if kem < rest[0]:
-                rest[2] += dt
-                if rest[2] >= rest[1]:
-                    status = 1
-                    break
-            else:
-                rest[2] = 0.0
-    err0, edge = constraint_error(x, edge_len)
-    if err0 > diag[0]:
-        diag[0] = err0
+        if _at_rest(kem, dt, rest):
+            status = 1
+            break
+    _record_constraint_error(x, edge_len, diag)
     return status, steps
 '''
 
@@ -1451,7 +1471,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
 #: The method's own imports in its generated module.
 _IMPORTS = """\
 from dynamics.bending import bending_force_add
-from dynamics.constraints import constraint_error
+from dynamics.contact import contact_positions, contact_velocities
 from dynamics.midpoint import (FINAL_C, KL, LOWRANK_MIN_RATE, MAX_CONTACT_ROUNDS, MAX_HALVINGS,
                                band_backward, band_forward, band_lu, band_lu_nopivot,
                                bending_hessian_add, contact_lowrank, contact_rows_save,
@@ -1508,6 +1528,10 @@ def compile_stepper(effects=()):
             raise ValueError(f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}")
         ref = kernel_ref(e)
         ground = e.kind == "constraint" and is_ground(e)
+        contact = check_self_contact(e, effects)
+        if contact:
+            refs.append((e.kind, *ref, None, contact))
+            continue
         if e.kind == "constraint":
             if not ground:
                 raise ValueError(
@@ -1578,8 +1602,6 @@ class Run:
     displacement rate instead.
     """
 
-    status_names = {2: ("newton_failed",
-                        "the implicit step's Newton iteration did not converge")}
 
     def __init__(self, rod, effects, dt, t0, rest, jacobian_age=JACOBIAN_AGE,
                  tol_x=NEWTON_TOL_X, tol_c=NEWTON_TOL_C, stiffness=True,
@@ -1609,8 +1631,9 @@ class Run:
         self.energy = np.zeros(self.n_energies)
         # diag: [0] largest constraint error, [1] pivoted factorisations, [2] most
         # iterations, [3] iteration sum, [4] contact rounds, [5] failing residual,
-        # [6] rejected steps, [7] deepest halving, [10] factorisations
-        self.diag = np.zeros(11)
+        # [6] rejected steps, [7] deepest halving, [10] factorisations, [11] the failing
+        # part was the self-contact projection, [12] unsettled self-contact velocity stages
+        self.diag = np.zeros(13)
         self.rest_arr = np.zeros(3)
         if rest is not None:
             self.rest_arr[0] = rest.kinetic_energy
@@ -1629,7 +1652,9 @@ class Run:
         # ground
         hooks = sum(1 for e in effects
                     if e.kind == "force" and getattr(e, "stiffness", None) is not None)
-        ground = [e for e in effects if e.kind == "constraint"]
+        ground = [e for e in effects if e.kind == "constraint" and is_ground(e)]
+        self.contact = any(is_self_contact(e) for e in effects)
+        self.ck = new_contact_work(edge_len if self.contact else np.ones(1))
         R = STIFFNESS_RANK * hooks
         nk = n if hooks else 0
         # columns for the stiffness and for the rows of contact changes
@@ -1669,8 +1694,11 @@ class Run:
         ws[5][:, :] = 0.0
         self._forces_at_x(self.t0)
         xs, vs, accs, hs = x.copy(), v.copy(), ws[5].copy(), ws[6].copy()
+        ck_state = [a.copy() for a in self.ck]
         self.mod.run(x, v, self.t0, self.dt, 1, *self.work, np.zeros(3), self.opts, self.lr,
-                     *self.params)
+                     self.ck, *self.params)
+        for a, b in zip(self.ck, ck_state, strict=True):
+            a[...] = b
         x[:, :], v[:, :], ws[5][:, :], ws[6][:, :] = xs, vs, accs, hs
         self.mu[:] = 0.0
         self.diag[:] = 0.0
@@ -1683,7 +1711,7 @@ class Run:
             if stop > step:
                 status, done = self.mod.run(self.x, self.v, self.t0 + step * self.dt,
                                             self.dt, stop - step, *self.work, self.rest_arr,
-                                            self.opts, self.lr, *self.params)
+                                            self.opts, self.lr, self.ck, *self.params)
                 step += done
                 if status != 0:
                     break
@@ -1705,8 +1733,20 @@ class Run:
         rec_steps[nrec] = step
         return nrec + 1
 
+    @property
+    def status_names(self):
+        if self.diag[11]:
+            return {2: ("contact_failed", "self-contact projection did not converge")}
+        return {2: ("newton_failed", "the implicit step's Newton iteration did not converge")}
+
+    def contact_forces(self):
+        """Self-contact forces on the nodes, mean over the last step (None without it)."""
+        return self.ck[14].copy() if self.contact else None
+
     def failure(self, status, step, t_final):
         dt = self.dt
+        if status == 2 and self.diag[11]:
+            return contact_failure(self.ck, t_final + dt, step + 1, dt, 2**MAX_HALVINGS)
         if status == 2:
             return (f"{self.status_names[2][1]} at t = {t_final + dt:g} (step {step + 1}): "
                     f"momentum residual {self.diag[5]:.3g} after {NEWTON_MAX_ITER} "
@@ -1723,4 +1763,5 @@ class Run:
                 "contact_rounds": int(d[4]), "constraint_error": float(d[0]),
                 "jacobians": int(d[10]), "pivoted_factorisations": int(d[1]),
                 "stiffness_lowrank": int(c[3]), "contact_updates": int(c[7]),
-                "stiffness_dropped": int(c[1])}
+                "stiffness_dropped": int(c[1]),
+                **(contact_stats(self.ck, int(d[12])) if self.contact else {})}

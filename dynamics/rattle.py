@@ -67,7 +67,8 @@ from .bending import BENDING_WORK_ROWS
 from .cache import is_compiled, load_module
 from .codegen import kernel_ref, render, stepper_depends
 from .constraints import SHAKE_FINAL, new_work
-from .effects import KINDS
+from .contact import check_self_contact, contact_failure, contact_stats, new_contact_work
+from .effects import KINDS, is_self_contact
 from .rod import kinetic_energy
 
 __all__ = ["DT_BOUND_C", "Run", "compile_stepper", "stable_dt"]
@@ -123,6 +124,7 @@ _IMPORTS = """\
 from dynamics.bending import bending_force_add_flat
 from dynamics.constraints import (constraint_error, shake, shake_flat, velocity_projection,
                                   velocity_projection_flat)
+from dynamics.contact import contact_positions, contact_velocities
 from dynamics.rod import kinetic_energy
 """
 
@@ -156,7 +158,7 @@ def prepare(x, v, t, edge_len, winv0, A, cw, lam$pargs):
 
 @numba.njit(cache=True, inline="always")
 def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, winvf, xf,
-          vf, winv0f, cw, lam, bw, energy, diag$pargs):
+          vf, winv0f, cw, lam, bw, energy, diag, ck$pargs):
     nc = xf.shape[0]
     half = 0.5 * dt
     t1 = t + dt
@@ -189,6 +191,7 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
     if it < 0:
         diag[4] = edge
         diag[5] = err
+        diag[8] = 0.0
         return 2
     if HAS_CONSTRAINTS:
         # the projection may push a free node through a unilateral constraint (ground):
@@ -211,6 +214,13 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
                 diag[5] = err
                 return 2
             it += it2
+    if HAS_CONTACT:
+        # self-contact: project onto the edge lengths and the non-penetration constraints
+        # linearised at the old positions (a no-op while no pair is within reach)
+        if contact_positions(x, xn, winv, edge_len, lam, _contact_thickness(t1$pargs),
+                             ck) < 0:
+            diag[8] = 1.0
+            return 2
     if it > diag[2]:
         diag[2] = it
     diag[3] += it
@@ -225,13 +235,19 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
     # SHAKE has just split winvf into the work array (constraint kernels change winv at
     # stage 0 only)
     velocity_projection_flat(xf, vf, winvf, cw, True)
+    if HAS_CONTACT:
+        # restitution 0 where the rod touches itself (an unsettled active set leaves the
+        # velocities of its last round and is counted)
+        if contact_velocities(x, v, winv, edge_len, _contact_thickness(t1$pargs), dt, 1.0,
+                              False, False, ck) < 0:
+            diag[9] += 1.0
     _damp(x, v, t1 - half, edge_len, mass, half$pargs)
     return 0
 
 
 @numba.njit(cache=True)
 def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy, diag,
-        rest$pargs):
+        rest, ck$pargs):
     nc = x.size
     Af = A.reshape(A.shape[0], nc)
     xf = x.reshape(nc)
@@ -257,7 +273,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,
             for j in range(nc):
                 vbf[j] = vf[j]
         st = _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf,
-                   winvf, xf, vf, winv0f, cw, lam, bw, energy, diag$pargs)
+                   winvf, xf, vf, winv0f, cw, lam, bw, energy, diag, ck$pargs)
         if st == 2:
             # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps, without the
             # multiplier predictor (it scales with the step squared)
@@ -276,7 +292,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,
                 for j in range(sub):
                     st = _step(x, v, t + j * h, h, edge_len, mass, winv0, B, F, xn, vh, winv,
                                Ff, xnf, vhf, winvf, xf, vf, winv0f, cw, lam, bw, energy,
-                               diag$pargs)
+                               diag, ck$pargs)
                     if st != 0:
                         break
                 if st == 0:
@@ -303,30 +319,23 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,
                     break
             diag[4] = worst
             break
-        if rest[0] > 0.0:
-            if ke < rest[0]:
-                rest[2] += dt
-                if rest[2] >= rest[1]:
-                    status = 1
-                    break
-            else:
-                rest[2] = 0.0
-    err0, edge = constraint_error(x, edge_len)
-    if err0 > diag[0]:
-        diag[0] = err0
+        if _at_rest(ke, dt, rest):
+            status = 1
+            break
+    _record_constraint_error(x, edge_len, diag)
     return status, steps
 
 
 @numba.njit(cache=True)
 def run_frames(x, v, t0, dt, step, stops, record, pos, ens, rec_steps, nrec, edge_len, mass,
-               winv0, B, A, cw, lam, bw, energy, diag, rest$pargs):
+               winv0, B, A, cw, lam, bw, energy, diag, rest, ck$pargs):
     # run to each stop in turn (one run call per stop, as a Python loop over run would
     # do) and record the frames flagged in ``record``
     status = 0
     for k in range(stops.shape[0]):
         if stops[k] > step:
             status, done = run(x, v, t0 + step * dt, dt, stops[k] - step, edge_len, mass,
-                               winv0, B, A, cw, lam, bw, energy, diag, rest$pargs)
+                               winv0, B, A, cw, lam, bw, energy, diag, rest, ck$pargs)
             step += done
             if status != 0:
                 break
@@ -344,7 +353,8 @@ def run_frames(x, v, t0, dt, step, stops, record, pos, ens, rec_steps, nrec, edg
 
 
 def _generate_source(refs):
-    """Source of a RATTLE stepper module for ``refs = [(kind, module, name), ...]``
+    """Source of a RATTLE stepper module for ``refs = [(kind, module, name, native), ...]``
+    (``native`` ``"contact"`` for the self-contact, else False)
     (:func:`dynamics.codegen.render` of :data:`_TEMPLATE`).
 
     Layout of the generated functions' arguments: ``x, v`` (n, 2) the state; ``A`` the
@@ -357,8 +367,8 @@ def _generate_source(refs):
     """
     imports = (_IMPORTS + f"SHAKE_FINAL = {SHAKE_FINAL!r}\nCONTACT_ROUNDS = {CONTACT_ROUNDS}\n"
                f"MAX_HALVINGS = {MAX_HALVINGS}\n")
-    return render(_TEMPLATE, [(kind, mod, name, None, False) for kind, mod, name in refs],
-                  imports)
+    return render(_TEMPLATE, [(kind, mod, name, None, native)
+                              for kind, mod, name, native in refs], imports)
 
 
 _MODULES: dict = {}
@@ -386,7 +396,7 @@ def compile_stepper(effects=()):
             raise ValueError(
                 f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}"
             )
-        refs.append((e.kind, *kernel_ref(e)))
+        refs.append((e.kind, *kernel_ref(e), check_self_contact(e, effects)))
     key = tuple(refs)
     if key not in _MODULES:
         _MODULES[key] = load_module("rattle", _generate_source(key), stepper_depends(key))
@@ -405,7 +415,11 @@ class Run:
     Options: ``check_dt`` (default True) refuses a ``dt`` above :func:`stable_dt`.
     """
 
-    status_names = {2: ("shake_failed", "inextensibility projection (SHAKE) did not converge")}
+    @property
+    def status_names(self):
+        if self.diag[8]:
+            return {2: ("contact_failed", "self-contact projection did not converge")}
+        return {2: ("shake_failed", "inextensibility projection (SHAKE) did not converge")}
 
     def __init__(self, rod, effects, dt, t0, rest, check_dt=True):
         self.dt_max = stable_dt(rod.edge_len, rod.mu, rod.B)
@@ -434,17 +448,21 @@ class Run:
         winv0[:, 1] = 1.0 / self.mass
         self.edge_len = rod.edge_len.copy()
         self.energy = np.zeros(self.n_energies)
+        self.contact = any(is_self_contact(e) for e in effects)
+        # the self-contact's work arrays (a token of the same types without one)
+        self.ck = new_contact_work(self.edge_len if self.contact else np.ones(1))
         # diag: [0] largest constraint error, [1] contact rounds, [2] most iterations,
         # [3] iteration sum, [4] failing edge/node, [5] its residual, [6] rejected steps,
-        # [7] deepest halving
-        self.diag = np.zeros(8)
+        # [7] deepest halving, [8] the failing projection was the self-contact's,
+        # [9] unsettled self-contact velocity stages
+        self.diag = np.zeros(10)
         rest_arr = np.zeros(3)
         if rest is not None:
             rest_arr[0] = rest.kinetic_energy
             rest_arr[1] = rest.duration
         self.work = (self.edge_len, self.mass, winv0, rod.B, np.zeros((7, n, 2)),
                      new_work(n - 1), np.zeros(n + 1), np.zeros((BENDING_WORK_ROWS, n)),
-                     self.energy, self.diag, rest_arr)
+                     self.energy, self.diag, rest_arr, self.ck)
 
     def compiled(self) -> bool:
         return is_compiled(self.mod, ("run", "run_frames", "prepare"))
@@ -478,9 +496,15 @@ class Run:
         rec_steps[nrec] = step
         return nrec + 1
 
+    def contact_forces(self):
+        """Self-contact forces on the nodes, mean over the last step (None without it)."""
+        return self.ck[14].copy() if self.contact else None
+
     def failure(self, status, step, t_final):
         d, dt = self.diag, self.dt
         name, msg = self.status_names.get(status, (None, "non-finite state (NaN/inf)"))
+        if status == 2 and d[8]:
+            return contact_failure(self.ck, t_final + dt, step + 1, dt, 2**MAX_HALVINGS)
         if status == 2:
             return (f"{msg} at t = {t_final + dt:g} (step {step + 1}): relative edge-length "
                     f"residual {d[5]:.3g} at edge {int(d[4])} after the iteration cap, even "
@@ -493,6 +517,9 @@ class Run:
 
     def stats(self) -> dict:
         d = self.diag
-        return {"rejected_steps": int(d[6]), "max_halvings": int(d[7]),
-                "iterations_max": float(d[2]), "iterations_sum": float(d[3]),
-                "contact_rounds": int(d[1]), "constraint_error": float(d[0])}
+        out = {"rejected_steps": int(d[6]), "max_halvings": int(d[7]),
+               "iterations_max": float(d[2]), "iterations_sum": float(d[3]),
+               "contact_rounds": int(d[1]), "constraint_error": float(d[0])}
+        if self.contact:
+            out.update(contact_stats(self.ck, int(d[9])))
+        return out

@@ -58,6 +58,7 @@ from dynamics import (
     Ground,
     RestCriterion,
     Rod,
+    SelfContact,
     SimulationResult,
     euler_bernoulli_omega,
     simulate,
@@ -354,6 +355,9 @@ def build_effects(scene: Scene) -> ImpactEffects:
         eff.append(Ground())
     if scene.effects.damping > 0:
         eff.append(Damping(scene.effects.damping))
+    if scene.rod.thickness > 0:
+        # the rod cannot pass through itself (rod.thickness; 0 = the paper's model)
+        eff.append(SelfContact(scene.rod.thickness))
     events = []
     for e in d.events:
         if e.s1 is not None:

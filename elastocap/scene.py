@@ -3,7 +3,8 @@
 A scene is dimensionless: lengths in the scene's unit (l_ec for the no-gravity scenes,
 l_eg for the gravity ones), B, mu and gamma as given. Sections and keys::
 
-    [rod]         length, bending_modulus = 1, mass_per_length = 1
+    [rod]         length, bending_modulus = 1, mass_per_length = 1, thickness = 0 (the rod's
+                  diameter for self-contact; 0 = off, the paper's model)
     [drop]        area, wetted_length, line_tension = 1,
                   center (arclength of the drop centre from S = 0; default L/2)
                   or distance_from_end (the paper's x: centre at S = L - x)
@@ -75,7 +76,11 @@ ROD_KEYS: dict[str, tuple[str, Any]] = {
     "length": ("pos", REQUIRED),
     "bending_modulus": ("pos", 1.0),
     "mass_per_length": ("pos", 1.0),
+    "thickness": ("nonneg", 0.0),
 }
+
+#: Largest rod.thickness, relative to rod.length: the rod is slender.
+MAX_THICKNESS_OVER_LENGTH = 0.1
 DROP_KEYS: dict[str, tuple[str, Any]] = {
     "area": ("pos", REQUIRED),
     "wetted_length": ("pos", REQUIRED),
@@ -258,6 +263,9 @@ class Rod:
     length: float
     bending_modulus: float = 1.0
     mass_per_length: float = 1.0
+    #: Diameter for self-contact (scene units): non-adjacent parts of the rod stay this far
+    #: apart (:class:`dynamics.SelfContact`); 0 = off (the paper's model, no contact).
+    thickness: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -373,13 +381,16 @@ class Scene:
         however the input was typed (``40`` or ``40.0``, a default written out or not)."""
         from dataclasses import asdict
 
+        rod = asdict(self.rod)
+        if not rod["thickness"]:
+            rod.pop("thickness")  # absent and 0 are the same scene (and digest)
         drop = asdict(self.drop)
         if drop["interface_contact"] == "ignore":
             # the paper's model, the default: left out so that the digests of scenes that
             # do not name the key (and of the results stored under them) are unchanged
             del drop["interface_contact"]
         return {
-            "rod": asdict(self.rod),
+            "rod": rod,
             "drop": drop,
             "effects": asdict(self.effects),
             "numerics": asdict(self.numerics),
@@ -523,6 +534,9 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
                     f"drop.{k}", drop_extra[k], "set by [experiment]; change the experiment instead"
                 )
         raw_rod = {"length": dim.length}
+        if experiment.thickness is not None:
+            # the strip's thickness h in scene units (h / l_eg): self-contact on
+            raw_rod["thickness"] = experiment.thickness / dim.length_unit
         raw_drop = {
             "area": dim.area,
             "wetted_length": dim.wetted_length,
@@ -548,6 +562,11 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
     if raw_drop is None:
         raise SceneError("drop", None, "missing: a scene needs [drop] (or [experiment])")
     rod = Rod(**_read_section(raw_rod, "rod", ROD_KEYS))
+    if rod.thickness > MAX_THICKNESS_OVER_LENGTH * rod.length:
+        raise SceneError("rod.thickness", rod.thickness,
+                         f"expected 0 <= thickness <= {MAX_THICKNESS_OVER_LENGTH:g} x rod.length "
+                         f"= {MAX_THICKNESS_OVER_LENGTH * rod.length:g} (a slender rod; 0 = no "
+                         "self-contact)")
     dsec = _read_section(raw_drop, "drop", DROP_KEYS)
     L = rod.length
     if dsec["center"] is not None and dsec["distance_from_end"] is not None:

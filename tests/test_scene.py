@@ -155,3 +155,23 @@ def test_digest_depends_on_values_not_on_how_they_are_typed():
     d = load_scene("supp-fig5", ["drop.center=2.3"])  # the default, written out
     assert a.digest() == b.digest() != c.digest()
     assert d.digest() == load_scene("supp-fig5").digest()
+
+
+def test_rod_thickness_key():
+    # off by default and absent from the digest; in scene units; refused beyond L/10
+    base = load_scene("supp-fig5")
+    assert base.rod.thickness == 0.0
+    assert load_scene("supp-fig5", ["rod.thickness=0"]).digest() == base.digest()
+    s = load_scene("supp-fig5", ["rod.thickness=0.02"])
+    assert s.rod.thickness == 0.02 and s.digest() != base.digest()
+    for bad, frag in (("-0.1", "expected"), ("0.5", "thickness <= 0.1 x rod.length = 0.46")):
+        with pytest.raises(SceneError, match=r"rod\.thickness: got") as err:
+            load_scene("supp-fig5", [f"rod.thickness={bad}"])
+        assert frag in str(err.value)
+    # an [experiment] gives it as h / l_eg (its length unit); without h, contact stays off
+    exp = load_scene("fig3-experiment")
+    assert exp.rod.thickness == 0.0
+    e = load_scene("fig3-experiment", ["experiment.bending_modulus=2.178e-8",
+                                        "experiment.thickness=1e-4"])
+    leg = e.experiment.l_eg
+    assert math.isclose(e.rod.thickness, 1e-4 / leg, rel_tol=1e-12)

@@ -1,0 +1,1043 @@
+"""Self-contact of the rod: non-penetration as unilateral constraints inside the projections.
+
+The rod is a tube of diameter ``d`` (:class:`dynamics.SelfContact`) around its centre line.
+Two parts of it far apart along the rod must stay at least ``d`` apart: for every node
+``i`` and segment ``j`` (nodes ``j, j+1``) whose arc-length gap is at least
+:func:`exclusion_length` (``pi d / 2``, the length of the tightest hairpin, a half circle
+of diameter ``d``), ``dist(x_i, segment j) >= d``.  In the plane that is the segment-segment
+condition: two segments that do not cross are closest at an endpoint of one of them.
+
+Formulation (both methods)
+--------------------------
+Each constraint enters the position projection of a step *linearised at the start of the
+step*, exactly as SHAKE linearises the edge-length constraints there: with ``u0`` the
+closest point of segment ``j`` to node ``i`` and ``n0`` the unit vector from that point to
+the node, both at the old positions ``xo``::
+
+    g(x) = n0 . (x_i - (1 - u0) x_j - u0 x_{j+1}) - d >= 0,
+
+a half space whose side is fixed by the old state, so a node cannot tunnel through a
+segment within one step whatever its speed; the true distance to the old closest point is
+``|x_i - p| >= n0 . (x_i - p) >= d``, to the segment it can fall short of ``d`` by a
+second-order amount while the contact rotates (restored at the next step).  The
+projection::
+
+    x = x* + W G_e(xo)^T lam + W C^T mu,    phi_e(x) = 0,   g(x) >= 0,  mu >= 0,  mu g = 0
+
+(``phi_e`` the edge lengths, ``C`` the rows of the active contacts) is solved by Newton on
+``(lam, mu)`` with the contact rows eliminated by a Schur complement (``_bordered_solve``:
+one tridiagonal factorisation, one solve per candidate contact, the contacts' dense
+capacitance matrix), whose complementarity problem is solved by projected Gauss-Seidel;
+the candidates are the listed pairs within twice the deepest penetration, and a pair
+left out that ends violated joins them.  The velocity stage is the same with the contact rows at the new
+positions: relative normal velocity ``>= 0`` where the rod touches (restitution 0,
+frictionless), together with the edges' ``G v = 0`` (RATTLE) or with the edges' stretching
+rates left unchanged (midpoint); an M-orthogonal projection onto a convex cone, so it never
+adds kinetic energy.  The contact forces are pairwise and opposite (node against the two
+nodes of the segment, weights ``1, -(1 - u), -u``): momentum is conserved to round-off.
+Redundant contacts (two stacked layers touch node-on-segment both ways) make the
+capacitance matrix singular: projected Gauss-Seidel copes with that (the positions are
+unique, the split of the multipliers is not); a node closest to a vertex is held by one of
+the two segments that share it, not both.
+
+Broad phase
+-----------
+A Verlet list: the pairs within ``d + skin`` of each other at the last rebuild
+(``skin = CONTACT_SKIN`` times the shortest edge, or more when one step moves a node
+further), found with a hashed uniform grid over the nodes (``O(N)``); it stays valid while
+every node, at the start and at the end of the step, is within ``skin / 2`` of where it was
+at the rebuild (then a pair not on the list is further than ``d`` apart all through the
+step).  A step therefore costs one pass over the nodes plus one over the listed pairs;
+the grid is rebuilt only when some node has moved ``skin / 2``.
+
+Work arrays: :func:`new_contact_work`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = [
+    "check_self_contact",
+    "contact_failure",
+    "contact_stats",
+    "CONTACT_SKIN",
+    "MAX_ACTIVE",
+    "exclusion_length",
+    "new_contact_work",
+    "contact_positions",
+    "contact_velocities",
+    "segment_distances",
+]
+
+#: Skin of the Verlet list, relative to the shortest edge: a larger skin means more listed
+#: pairs to test each step, a smaller one more frequent rebuilds.
+CONTACT_SKIN = 0.5
+
+#: Listed pairs per node the list can hold (a rod lying on itself lists ~3).
+PAIRS_PER_NODE = 16
+
+#: Most contacts active at once (the capacitance matrix is dense in them).
+MAX_ACTIVE = 512
+
+#: Newton iterations of a position projection with contacts (edges converge
+#: quadratically, the contact rows are linear: 2-3 are usual).
+MAX_NEWTON = 30
+
+#: Rounds of the active-set loop (add violated pairs, drop pulling ones).
+MAX_ROUNDS = 30
+
+#: Relative edge-length tolerance (as SHAKE's) and gap tolerance (relative to the shortest
+#: edge, with a round-off floor relative to the size of the coordinates).
+TOL_EDGE = 1e-14
+TOL_GAP = 1e-13
+TOL_FLOOR = 4e-16
+
+#: Complementarity residual accepted, relative to the thickness, when redundant contacts
+#: (two stacked layers touching node-on-segment both ways) stall the iteration above
+#: round-off (measured: 2e-8 on a rod folded flat onto itself).
+TOL_REDUNDANT = 1e-7
+
+#: Relative diagonal shift of the contacts' capacitance matrix (see the module notes).
+REGULARISATION = 1e-11
+
+#: Solves of the velocity stage's complementarity problem from the remaining residual.
+VELOCITY_REFINEMENTS = 3
+
+#: Sweeps of projected Gauss-Seidel on the contacts' complementarity problem.
+PGS_MAX_SWEEPS = 2000
+
+# rows of meta (int64)
+_NPAIRS, _VALID, _REBUILDS, _NACT, _MAXACT, _STEPS, _ROUNDS, _FAIL, _FORCES, _NVEL = range(10)
+# rows of stat (float64)
+_GAPERR, _PENETRATION, _FTOTAL, _SKIN = range(4)
+
+
+def check_self_contact(effect, effects):
+    """``"contact"`` if ``effect`` is the rod's self-contact (by the effect protocol), else
+    False; refuses a second one and a thickness read from elsewhere than ``params[0]``."""
+    from .effects import is_self_contact
+
+    if not is_self_contact(effect):
+        return False
+    if int(effect.self_contact_thickness_param) != 0:
+        raise ValueError(f"effect {effect.name!r}: the self-contact thickness is read from "
+                         "params[0]; got self_contact_thickness_param = "
+                         f"{effect.self_contact_thickness_param!r}")
+    others = [e.name for e in effects if is_self_contact(e)]
+    if len(others) > 1:
+        raise ValueError(f"at most one self-contact effect; got {others}")
+    return "contact"
+
+
+_FAILURES = {1: "more candidate pairs than the list holds (PAIRS_PER_NODE per node)",
+             2: f"more than the {MAX_ACTIVE} simultaneous contacts the solver holds",
+             3: "a singular projection system",
+             4: "the Newton iteration on edge lengths and gaps did not converge",
+             5: "the active set of contacts did not settle"}
+
+
+def contact_failure(ck, t, step, dt, substeps):
+    """The message of a step whose self-contact projection failed."""
+    code = int(ck[0][_FAIL])
+    return (f"self-contact projection did not converge at t = {t:g} (step {step}): "
+            f"{_FAILURES.get(code, 'unknown failure')}, even with {substeps} substeps. A "
+            f"smaller dt (now {dt:g}) moves the rod less per step; a thickness much larger "
+            "than an edge multiplies the contacts.")
+
+
+def contact_stats(ck, velocity_failures):
+    """The self-contact's entries of ``SimulationResult.stats``.
+
+    ``self_contact_steps`` steps with an active contact; ``self_contact_max_active`` most
+    contacts active in a step (position stage); ``self_contact_rounds`` active-set rounds;
+    ``self_contact_rebuilds`` rebuilds of the pair list; ``self_contact_gap_error``
+    largest ``|gap - thickness| / thickness`` of a pushing contact, or penetration of any
+    listed pair, after a projection;
+    ``self_contact_penetration`` deepest predicted penetration corrected, relative to the
+    thickness; ``self_contact_force`` total magnitude of the contact forces of the last
+    step (each pair counted once); ``self_contact_velocity_unsettled`` velocity stages whose
+    active set did not settle (their last round was kept).
+    """
+    meta, stat = ck[0], ck[1]
+    return {"self_contact_steps": int(meta[_STEPS]),
+            "self_contact_max_active": int(meta[_MAXACT]),
+            "self_contact_rounds": int(meta[_ROUNDS]),
+            "self_contact_rebuilds": int(meta[_REBUILDS]),
+            "self_contact_gap_error": float(stat[_GAPERR]),
+            "self_contact_penetration": float(stat[_PENETRATION]),
+            "self_contact_force": float(stat[_FTOTAL]),
+            "self_contact_velocity_unsettled": int(velocity_failures)}
+
+
+def exclusion_length(thickness):
+    """Arc-length gap below which a node and a segment are not tested against each other:
+    ``pi d / 2``, the length of the tightest hairpin (half a circle of diameter ``d``)."""
+    return 0.5 * math.pi * float(thickness)
+
+
+def new_contact_work(edge_len):
+    """The work tuple of the contact kernels for a rod with these rest edge lengths.
+
+    ``(meta, stat, xref, s_arc, pairs, pf, act, am, bm, Y, S, vec, grid, cell, fc, scratch,
+    piv, mark, contact rows (int), flags, normals, weights, edges)``: counters, statistics, the positions at the last rebuild, the arc length
+    of every node, the listed pairs ``(node, segment)`` and per pair ``(u, nx, nz, g)``,
+    the active pairs with their position and velocity multipliers, the Schur work (``Y``
+    one tridiagonal solve per contact, ``S`` the capacitance matrix), vectors, the hashed
+    grid (bucket heads, next, cell of every node), the contact forces of the last step
+    (n, 2), scratch node arrays, pivots, per-pair marks, and the rows of the contacts being
+    solved (node and segment, normal, weight u; for the position stage, the touching pairs
+    and the active ones of the velocity stage) with the edge vectors.
+    """
+    edge_len = np.asarray(edge_len, dtype=np.float64)
+    m = edge_len.shape[0]
+    n = m + 1
+    K = min(3 * n, MAX_ACTIVE)
+    H = 1
+    while H < 2 * n:
+        H *= 2
+    s_arc = np.zeros(n)
+    s_arc[1:] = np.cumsum(edge_len)
+    P = PAIRS_PER_NODE * n
+    return (np.zeros(10, dtype=np.int64), np.zeros(4), np.zeros((n, 2)), s_arc,
+            np.zeros((P, 2), dtype=np.int64), np.zeros((P, 4)),
+            np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros((K, m)),
+            np.zeros((K, K)), np.zeros((13, max(m, K) + 2)), np.zeros(H + n, dtype=np.int64),
+            np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2)), np.zeros((3, n, 2)),
+            np.zeros(K, dtype=np.int64), np.zeros(P, dtype=np.int64),
+            np.zeros((3, K, 2), dtype=np.int64), np.zeros((4, K), dtype=np.int64),
+            np.zeros((3, K, 2)), np.zeros((3, K)), np.zeros((2, m, 2)))
+
+
+# ----------------------------------------------------------------------------- geometry
+
+
+@numba.njit(cache=True, inline="always")
+def _closest(x, i, j):
+    """Closest point of segment j to node i: (u, qx, qz) with q = x_i - p(u)."""
+    ax = x[j, 0]
+    az = x[j, 1]
+    ex = x[j + 1, 0] - ax
+    ez = x[j + 1, 1] - az
+    px = x[i, 0] - ax
+    pz = x[i, 1] - az
+    l2 = ex * ex + ez * ez
+    u = (px * ex + pz * ez) / l2 if l2 > 0.0 else 0.0
+    u = 0.0 if u < 0.0 else (1.0 if u > 1.0 else u)
+    return u, px - u * ex, pz - u * ez
+
+
+@numba.njit(cache=True, inline="always")
+def _included(i, j, s_arc, lex):
+    """Whether node i and segment j are far enough apart along the rod to be tested."""
+    if j > i:
+        return s_arc[j] - s_arc[i] >= lex
+    if j + 1 < i:
+        return s_arc[i] - s_arc[j + 1] >= lex
+    return False
+
+
+@numba.njit(cache=True)
+def segment_distances(x, thickness, edge_len):
+    """Smallest distance between a node and a segment that are tested against each other
+    (arc gap >= :func:`exclusion_length`), by brute force (``O(N**2)``, for checks).
+
+    Returns ``(dmin, node, segment)``; ``(inf, -1, -1)`` when no pair is tested."""
+    n = x.shape[0]
+    s_arc = np.zeros(n)
+    for k in range(n - 1):
+        s_arc[k + 1] = s_arc[k] + edge_len[k]
+    lex = 0.5 * math.pi * thickness
+    best = np.inf
+    bi = -1
+    bj = -1
+    for i in range(n):
+        for j in range(n - 1):
+            if _included(i, j, s_arc, lex):
+                u, qx, qz = _closest(x, i, j)
+                dd = math.sqrt(qx * qx + qz * qz)
+                if dd < best:
+                    best = dd
+                    bi = i
+                    bj = j
+    return best, bi, bj
+
+
+@numba.njit(cache=True, inline="always")
+def _hash(ix, iz, mask):
+    return ((ix * 73856093) ^ (iz * 19349663)) & mask
+
+
+@numba.njit(cache=True)
+def _rebuild(x, thickness, skin, ck):
+    """List the (node, segment) pairs closer than ``thickness + skin`` at ``x`` (hashed
+    grid of cell size ``h_max + 2 (thickness + skin)``, so a segment's box inflated by
+    that reach covers at most 2 x 2 cells)."""
+    meta = ck[0]
+    s_arc = ck[3]
+    pairs = ck[4]
+    xref = ck[2]
+    grid = ck[12]
+    cell = ck[13]
+    n = x.shape[0]
+    lex = 0.5 * math.pi * thickness
+    reach = thickness + skin
+    hmax = 0.0
+    for j in range(n - 1):
+        ex = x[j + 1, 0] - x[j, 0]
+        ez = x[j + 1, 1] - x[j, 1]
+        le = math.sqrt(ex * ex + ez * ez)
+        if le > hmax:
+            hmax = le
+    c = hmax + 2.0 * reach
+    inv_c = 1.0 / c
+    H = grid.shape[0] - n
+    mask = H - 1
+    for b in range(H):
+        grid[b] = -1
+    # nodes into buckets: head grid[b], next grid[H + i]
+    for i in range(n):
+        ix = int(math.floor(x[i, 0] * inv_c))
+        iz = int(math.floor(x[i, 1] * inv_c))
+        cell[i, 0] = ix
+        cell[i, 1] = iz
+        b = _hash(ix, iz, mask)
+        grid[H + i] = grid[b]
+        grid[b] = i
+        xref[i, 0] = x[i, 0]
+        xref[i, 1] = x[i, 1]
+    npairs = 0
+    cap = pairs.shape[0]
+    r2 = reach * reach
+    for j in range(n - 1):
+        x0 = min(x[j, 0], x[j + 1, 0]) - reach
+        x1 = max(x[j, 0], x[j + 1, 0]) + reach
+        z0 = min(x[j, 1], x[j + 1, 1]) - reach
+        z1 = max(x[j, 1], x[j + 1, 1]) + reach
+        ix0 = int(math.floor(x0 * inv_c))
+        ix1 = int(math.floor(x1 * inv_c))
+        iz0 = int(math.floor(z0 * inv_c))
+        iz1 = int(math.floor(z1 * inv_c))
+        for ix in range(ix0, ix1 + 1):
+            for iz in range(iz0, iz1 + 1):
+                i = grid[_hash(ix, iz, mask)]
+                while i >= 0:
+                    if (cell[i, 0] == ix and cell[i, 1] == iz and _included(i, j, s_arc, lex)
+                            and x[i, 0] >= x0 and x[i, 0] <= x1 and x[i, 1] >= z0
+                            and x[i, 1] <= z1):
+                        u, qx, qz = _closest(x, i, j)
+                        if qx * qx + qz * qz < r2:
+                            if npairs >= cap:
+                                meta[_FAIL] = 1
+                                meta[_NPAIRS] = npairs
+                                return False
+                            pairs[npairs, 0] = i
+                            pairs[npairs, 1] = j
+                            npairs += 1
+                    i = grid[H + i]
+    # sorted by node, then segment (for the redundancy test of the narrow phase)
+    key = np.empty(npairs, dtype=np.int64)
+    for p in range(npairs):
+        key[p] = pairs[p, 0] * n + pairs[p, 1]
+    order = np.argsort(key)
+    tmp = pairs[:npairs].copy()
+    for p in range(npairs):
+        pairs[p, 0] = tmp[order[p], 0]
+        pairs[p, 1] = tmp[order[p], 1]
+    meta[_NPAIRS] = npairs
+    meta[_VALID] = 1
+    meta[_REBUILDS] += 1
+    return True
+
+
+@numba.njit(cache=True)
+def _list_valid(xo, x, ck):
+    """Whether every node of ``xo`` and ``x`` is within skin / 2 of the last rebuild; also
+    returns the largest displacement ``|x - xo|`` of a node."""
+    xref = ck[2]
+    half = 0.5 * ck[1][_SKIN]
+    lim = half * half
+    worst = 0.0
+    step = 0.0
+    for i in range(x.shape[0]):
+        ax = x[i, 0] - xref[i, 0]
+        az = x[i, 1] - xref[i, 1]
+        bx = xo[i, 0] - xref[i, 0]
+        bz = xo[i, 1] - xref[i, 1]
+        cx = x[i, 0] - xo[i, 0]
+        cz = x[i, 1] - xo[i, 1]
+        a = ax * ax + az * az
+        b = bx * bx + bz * bz
+        cc = cx * cx + cz * cz
+        worst = a if a > worst else worst
+        worst = b if b > worst else worst
+        step = cc if cc > step else step
+    return (worst < lim and ck[0][_VALID] == 1), math.sqrt(step)
+
+
+# ----------------------------------------------------------------------------- linear algebra
+
+
+@numba.njit(cache=True)
+def _lu_solve(S, b, piv, na):
+    """Dense LU with partial pivoting: solve ``S y = b`` in place (S overwritten)."""
+    for k in range(na):
+        p = k
+        big = abs(S[k, k])
+        for r in range(k + 1, na):
+            if abs(S[r, k]) > big:
+                big = abs(S[r, k])
+                p = r
+        if big == 0.0 or not np.isfinite(big):
+            return False
+        piv[k] = p
+        if p != k:
+            for cc in range(na):
+                tmp = S[k, cc]
+                S[k, cc] = S[p, cc]
+                S[p, cc] = tmp
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+        inv = 1.0 / S[k, k]
+        for r in range(k + 1, na):
+            fr = S[r, k] * inv
+            if fr != 0.0:
+                for cc in range(k + 1, na):
+                    S[r, cc] -= fr * S[k, cc]
+                b[r] -= fr * b[k]
+    for k in range(na - 1, -1, -1):
+        acc = b[k]
+        for cc in range(k + 1, na):
+            acc -= S[k, cc] * b[cc]
+        b[k] = acc / S[k, k]
+    return True
+
+
+@numba.njit(cache=True)
+def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, mu0, eq,
+                    pgs_tol):
+    """Solve the edge rows (tridiagonal) bordered by ``na`` contact rows.
+
+    Edge row e: ``f R_e . (dq_{e+1} - dq_e) = rhs_e[e]``, contact row k:
+    ``n_k . (dq_i - (1-u) dq_j - u dq_{j+1}) = rhs_c[k]``, with
+    ``dq = W (G_O^T dl + C^T dm)`` (``G_O`` the edge directions ``O``).  Rows of edges
+    with both ends held are identities (``dl = 0``).  Returns False if a pivot vanished.
+    """
+    m = R.shape[0]
+    vec = ck[11]
+    Y = ck[9]
+    S = ck[10]
+    piv = ck[16]
+    a = vec[0]
+    b = vec[1]
+    c = vec[2]
+    cp = vec[3]
+    gi = vec[4]
+    z = vec[5]
+    col = vec[6]
+    skip = vec[7]
+    # tridiagonal rows
+    for e in range(m):
+        rx = R[e, 0]
+        rz = R[e, 1]
+        wx0 = w[e, 0]
+        wz0 = w[e, 1]
+        wx1 = w[e + 1, 0]
+        wz1 = w[e + 1, 1]
+        bb = f * (rx * (wx0 + wx1) * O[e, 0] + rz * (wz0 + wz1) * O[e, 1])
+        scale = f * (abs(rx * O[e, 0]) + abs(rz * O[e, 1])) * (wx0 + wx1 + wz0 + wz1)
+        if abs(bb) <= 1e-12 * scale or scale == 0.0:
+            a[e] = 0.0
+            b[e] = 1.0
+            c[e] = 0.0
+            skip[e] = 1.0
+        else:
+            a[e] = -f * (rx * wx0 * O[e - 1, 0] + rz * wz0 * O[e - 1, 1]) if e > 0 else 0.0
+            c[e] = -f * (rx * wx1 * O[e + 1, 0] + rz * wz1 * O[e + 1, 1]) if e < m - 1 else 0.0
+            b[e] = bb
+            skip[e] = 0.0
+    # Thomas factorisation: gi = 1 / pivot, cp = c * gi
+    for e in range(m):
+        den = b[e] - (a[e] * cp[e - 1] if e > 0 else 0.0)
+        if den == 0.0 or not np.isfinite(den):
+            return False
+        gi[e] = 1.0 / den
+        cp[e] = c[e] * gi[e]
+    # z = T^-1 rhs_e
+    for e in range(m):
+        r = 0.0 if skip[e] != 0.0 else rhs_e[e]
+        z[e] = (r - (a[e] * z[e - 1] if e > 0 else 0.0)) * gi[e]
+    for e in range(m - 2, -1, -1):
+        z[e] -= cp[e] * z[e + 1]
+    if na == 0:
+        for e in range(m):
+            dl[e] = z[e]
+        return True
+    # Y[k] = T^-1 B[:, k] (B: the edge rows' response to contact k's impulse)
+    for e in range(m):
+        col[e] = 0.0
+    for k in range(na):
+        i = ci[k, 0]
+        j = ci[k, 1]
+        u = cu[k]
+        nx = cn[k, 0]
+        nz = cn[k, 1]
+        for t in range(3):
+            q = i if t == 0 else (j if t == 1 else j + 1)
+            wq = 1.0 if t == 0 else (-(1.0 - u) if t == 1 else -u)
+            px = w[q, 0] * wq * nx
+            pz = w[q, 1] * wq * nz
+            if q - 1 >= 0:
+                col[q - 1] += f * (R[q - 1, 0] * px + R[q - 1, 1] * pz)
+            if q < m:
+                col[q] -= f * (R[q, 0] * px + R[q, 1] * pz)
+        yk = Y[k]
+        for e in range(m):
+            r = 0.0 if skip[e] != 0.0 else col[e]
+            yk[e] = (r - (a[e] * yk[e - 1] if e > 0 else 0.0)) * gi[e]
+        for e in range(m - 2, -1, -1):
+            yk[e] -= cp[e] * yk[e + 1]
+        # clear the column's entries
+        for t in range(3):
+            q = i if t == 0 else (j if t == 1 else j + 1)
+            if q - 1 >= 0:
+                col[q - 1] = 0.0
+            if q < m:
+                col[q] = 0.0
+    # Schur complement S = C W C^T - B2 Y, rhs = rhs_c - B2 z
+    smax = 0.0
+    for k in range(na):
+        ik = ci[k, 0]
+        jk = ci[k, 1]
+        uk = cu[k]
+        nxk = cn[k, 0]
+        nzk = cn[k, 1]
+        for l in range(na):
+            il = ci[l, 0]
+            jl = ci[l, 1]
+            ul = cu[l]
+            s = 0.0
+            for t in range(3):
+                q = ik if t == 0 else (jk if t == 1 else jk + 1)
+                wk = 1.0 if t == 0 else (-(1.0 - uk) if t == 1 else -uk)
+                wl = ((1.0 if q == il else 0.0) - ((1.0 - ul) if q == jl else 0.0)
+                      - (ul if q == jl + 1 else 0.0))
+                if wl != 0.0:
+                    s += wk * wl * (nxk * w[q, 0] * cn[l, 0] + nzk * w[q, 1] * cn[l, 1])
+            S[k, l] = s
+        if S[k, k] > smax:
+            smax = S[k, k]
+        rk = rhs_c[k]
+        # B2 row k: d g_k / d dl_e = sum_q w_q n_k . W_q (O_{q-1} [e = q-1] - O_q [e = q])
+        for t in range(3):
+            q = ik if t == 0 else (jk if t == 1 else jk + 1)
+            wk = 1.0 if t == 0 else (-(1.0 - uk) if t == 1 else -uk)
+            for side in range(2):
+                e = q - 1 if side == 0 else q
+                if e < 0 or e >= m:
+                    continue
+                sg = 1.0 if side == 0 else -1.0
+                coef = sg * wk * (nxk * w[q, 0] * O[e, 0] + nzk * w[q, 1] * O[e, 1])
+                if coef != 0.0:
+                    rk -= coef * z[e]
+                    for l in range(na):
+                        S[k, l] -= coef * Y[l, e]
+        dm[k] = rk
+    if lcp:
+        # the contacts' linear complementarity problem in the total multipliers
+        # nu = mu0 + dm: w = S nu + q >= 0 (the gaps after the update), nu >= 0 (not for
+        # the equality rows), w nu = 0; projected Gauss-Seidel, which copes with redundant
+        # contacts (the positions are unique, the multipliers need not be)
+        q = vec[6]
+        # complementarity residual at the start (mu0): the gap -rhs where the contact
+        # pushes (or is an equality), the penetration elsewhere
+        qmax = 0.0
+        for k in range(na):
+            r0 = abs(dm[k]) if (mu0[k] > 0.0 or eq[k] != 0) else max(dm[k], 0.0)
+            qmax = max(qmax, r0)
+        for k in range(na):
+            acc = -dm[k]
+            for l in range(na):
+                acc -= S[k, l] * mu0[l]
+            q[k] = acc
+            dm[k] = mu0[k]
+        # to the tolerance, or a millionth of that residual: the Newton iteration around
+        # this solve refines what is left
+        tol = max(pgs_tol, 1e-6 * qmax)
+        for sweep in range(PGS_MAX_SWEEPS):
+            ch = 0.0
+            for k in range(na):
+                skk = S[k, k] + REGULARISATION * smax
+                if skk <= 0.0:
+                    continue
+                r = q[k]
+                for l in range(na):
+                    r += S[k, l] * dm[l]
+                new = dm[k] - r / skk
+                if eq[k] == 0 and new < 0.0:
+                    new = 0.0
+                c_ = abs(new - dm[k]) * skk
+                ch = c_ if c_ > ch else ch
+                dm[k] = new
+            if ch <= tol:
+                break
+        for k in range(na):
+            dm[k] -= mu0[k]
+    else:
+        shift = REGULARISATION * smax
+        for k in range(na):
+            S[k, k] += shift
+        if not _lu_solve(S, dm, piv, na):
+            return False
+    # dl = z - Y^T dm
+    for e in range(m):
+        s = z[e]
+        for k in range(na):
+            s -= Y[k, e] * dm[k]
+        dl[e] = s
+    return True
+
+
+@numba.njit(cache=True)
+def _apply(q, w, O, dl, na, ci, cu, cn, dm, fac):
+    """``q += fac W (G_O^T dl + C^T dm)``."""
+    m = O.shape[0]
+    for jn in range(q.shape[0]):
+        gx = 0.0
+        gz = 0.0
+        if jn >= 1:
+            gx += O[jn - 1, 0] * dl[jn - 1]
+            gz += O[jn - 1, 1] * dl[jn - 1]
+        if jn < m:
+            gx -= O[jn, 0] * dl[jn]
+            gz -= O[jn, 1] * dl[jn]
+        q[jn, 0] += fac * w[jn, 0] * gx
+        q[jn, 1] += fac * w[jn, 1] * gz
+    for k in range(na):
+        i = ci[k, 0]
+        j = ci[k, 1]
+        u = cu[k]
+        mk = fac * dm[k]
+        q[i, 0] += w[i, 0] * cn[k, 0] * mk
+        q[i, 1] += w[i, 1] * cn[k, 1] * mk
+        q[j, 0] -= w[j, 0] * (1.0 - u) * cn[k, 0] * mk
+        q[j, 1] -= w[j, 1] * (1.0 - u) * cn[k, 1] * mk
+        q[j + 1, 0] -= w[j + 1, 0] * u * cn[k, 0] * mk
+        q[j + 1, 1] -= w[j + 1, 1] * u * cn[k, 1] * mk
+
+
+@numba.njit(cache=True, inline="always")
+def _gap(x, i, j, u, nx, nz, d):
+    return (nx * (x[i, 0] - (1.0 - u) * x[j, 0] - u * x[j + 1, 0])
+            + nz * (x[i, 1] - (1.0 - u) * x[j, 1] - u * x[j + 1, 1]) - d)
+
+
+# ----------------------------------------------------------------------------- stages
+
+
+@numba.njit(cache=True, inline="always")
+def _redundant(pairs, npairs, p, u, u_prev):
+    """Whether listed pair p (node i, segment j, closest point u) repeats a neighbour: a
+    node closest to the vertex shared by segments j and j +- 1 is held by the constraint of
+    the other segment (the pairs are sorted by node, then segment; ``u_prev`` is the
+    closest point of pair p - 1)."""
+    i = pairs[p, 0]
+    j = pairs[p, 1]
+    if u >= 1.0 and p + 1 < npairs and pairs[p + 1, 0] == i and pairs[p + 1, 1] == j + 1:
+        return True
+    if (u <= 0.0 and p > 0 and pairs[p - 1, 0] == i and pairs[p - 1, 1] == j - 1
+            and u_prev < 1.0):
+        return True
+    return False
+
+
+@numba.njit(cache=True)
+def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
+    """Position stage: project ``x`` (edge lengths already satisfied, e.g. by SHAKE) onto
+    the edge lengths and the non-penetration constraints linearised at ``xo``.
+
+    Parameters
+    ----------
+    xo : ndarray (n, 2)
+        Positions at the start of the step (satisfying the constraints).
+    x : ndarray (n, 2)
+        Projected in place.
+    w : ndarray (n, 2)
+        Inverse masses (0 for held coordinates).
+    edge_len : ndarray (n - 1,)
+    lam : ndarray (n + 1,)
+        The edge multipliers, padded as SHAKE's (entry e + 1 for edge e): the corrections
+        of the edge multipliers are added to it.
+    thickness : float
+    ck : tuple
+        :func:`new_contact_work`.
+
+    Returns
+    -------
+    int
+        0 no contact, 1 contacts projected, -1 failure (``meta[_FAIL]``: 1 too many listed
+        pairs, 2 too many contacts, 3 singular system, 4 Newton did not converge, 5 the
+        set of contacts did not settle).
+    """
+    meta = ck[0]
+    stat = ck[1]
+    pairs = ck[4]
+    pf = ck[5]
+    act = ck[6]
+    am = ck[7]
+    fc = ck[14]
+    mark = ck[17]
+    n = x.shape[0]
+    m = n - 1
+    h_min = edge_len.min()
+    if meta[_FORCES] != 0:
+        for i in range(n):
+            fc[i, 0] = 0.0
+            fc[i, 1] = 0.0
+        meta[_FORCES] = 0
+    meta[_NACT] = 0
+    ok, step = _list_valid(xo, x, ck)
+    if not ok:
+        skin = CONTACT_SKIN * h_min
+        if 2.5 * step > skin:
+            skin = 2.5 * step
+        stat[_SKIN] = skin
+        if not _rebuild(x, thickness, skin, ck):
+            return -1
+    npairs = meta[_NPAIRS]
+    if npairs == 0:
+        return 0
+    # narrow phase: normals at xo, gaps at x
+    worst = 0.0
+    u_prev = 0.0
+    for p in range(npairs):
+        i = pairs[p, 0]
+        j = pairs[p, 1]
+        u, qx, qz = _closest(xo, i, j)
+        dd = math.sqrt(qx * qx + qz * qz)
+        if dd > 0.0:
+            nx = qx / dd
+            nz = qz / dd
+        else:
+            # on the segment: its normal
+            ex = xo[j + 1, 0] - xo[j, 0]
+            ez = xo[j + 1, 1] - xo[j, 1]
+            le = math.sqrt(ex * ex + ez * ez)
+            nx = -ez / le
+            nz = ex / le
+        pf[p, 0] = u
+        pf[p, 1] = nx
+        pf[p, 2] = nz
+        g = _gap(x, i, j, u, nx, nz, thickness)
+        pf[p, 3] = g
+        mark[p] = -1 if _redundant(pairs, npairs, p, u, u_prev) else 0
+        u_prev = u
+        if mark[p] == 0 and -g > worst:
+            worst = -g
+    if worst == 0.0:
+        return 0
+    if worst > stat[_PENETRATION] * thickness:
+        stat[_PENETRATION] = worst / thickness
+    K = act.shape[0]
+    ci = ck[18][0]
+    cn = ck[20][0]
+    cu = ck[21][0]
+    eq = ck[19][0]
+    vec = ck[11]
+    R = ck[22][0]
+    O = ck[22][1]
+    for e in range(m):
+        O[e, 0] = xo[e + 1, 0] - xo[e, 0]
+        O[e, 1] = xo[e + 1, 1] - xo[e, 1]
+    phi = vec[8]
+    rc = vec[9]
+    dl = vec[10]
+    dm = vec[11]
+    xscale = 0.0
+    for i in range(n):
+        xscale = max(xscale, abs(x[i, 0]), abs(x[i, 1]))
+    tol_g = TOL_GAP * h_min + TOL_FLOOR * xscale
+    # the candidates: pairs within twice the deepest penetration of contact (the
+    # projection moves the rod by about that); a pair left out that ends violated is
+    # added and the projection repeated
+    reach = 2.0 * worst + tol_g
+    na = 0
+    for p in range(npairs):
+        if mark[p] == 0 and pf[p, 3] < reach:
+            if na >= K:
+                meta[_FAIL] = 2
+                return -1
+            act[na] = p
+            am[na] = 0.0
+            eq[na] = 0
+            mark[p] = 1
+            na += 1
+    settled = False
+    for rnd in range(MAX_ROUNDS):
+        meta[_ROUNDS] += 1
+        for k in range(na):
+            p = act[k]
+            ci[k, 0] = pairs[p, 0]
+            ci[k, 1] = pairs[p, 1]
+            cu[k] = pf[p, 0]
+            cn[k, 0] = pf[p, 1]
+            cn[k, 1] = pf[p, 2]
+        conv = False
+        err_e = np.inf
+        err_g = np.inf
+        g_prev = np.inf
+        for it in range(MAX_NEWTON + 1):
+            err_e = 0.0
+            for e in range(m):
+                R[e, 0] = x[e + 1, 0] - x[e, 0]
+                R[e, 1] = x[e + 1, 1] - x[e, 1]
+                li2 = edge_len[e] * edge_len[e]
+                ph = R[e, 0] * R[e, 0] + R[e, 1] * R[e, 1] - li2
+                phi[e] = -ph
+                r = abs(ph) / (2.0 * li2)
+                err_e = r if r > err_e else err_e
+            # complementarity residual: penetration, or a gap where the contact pushes
+            err_g = 0.0
+            for k in range(na):
+                g = _gap(x, ci[k, 0], ci[k, 1], cu[k], cn[k, 0], cn[k, 1], thickness)
+                rc[k] = -g
+                r = abs(g) if am[k] > 0.0 else -g
+                err_g = r if r > err_g else err_g
+            if err_e <= TOL_EDGE and err_g <= tol_g:
+                conv = True
+                break
+            if it == MAX_NEWTON or (it > 4 and err_e <= TOL_EDGE and err_g >= 0.5 * g_prev):
+                break
+            g_prev = err_g
+            if not _bordered_solve(R, O, w, 2.0, phi, na, ci, cu, cn, rc, ck, dl, dm, True,
+                                   am, eq, 0.1 * tol_g):
+                meta[_FAIL] = 3
+                return -1
+            _apply(x, w, O, dl, na, ci, cu, cn, dm, 1.0)
+            for e in range(m):
+                lam[e + 1] += dl[e]
+            for k in range(na):
+                am[k] += dm[k]
+                if am[k] < 0.0:
+                    am[k] = 0.0
+        if not conv:
+            # redundant contacts (stacked layers) stall the complementarity residual above
+            # round-off: accepted below TOL_REDUNDANT * thickness, anything else refused
+            if not (err_e < 1e-12 and err_g < max(100.0 * tol_g, TOL_REDUNDANT * thickness)):
+                meta[_FAIL] = 4
+                return -1
+        # a pair left out of the candidates that ends violated joins them
+        changed = False
+        for p in range(npairs):
+            if mark[p] == 0:
+                g = _gap(x, pairs[p, 0], pairs[p, 1], pf[p, 0], pf[p, 1], pf[p, 2], thickness)
+                if g < -tol_g:
+                    if na >= K:
+                        meta[_FAIL] = 2
+                        return -1
+                    act[na] = p
+                    am[na] = 0.0
+                    eq[na] = 0
+                    mark[p] = 1
+                    na += 1
+                    changed = True
+        if not changed:
+            settled = True
+            break
+    if not settled:
+        meta[_FAIL] = 5
+        return -1
+    # keep the pushing contacts only (their marks tell the velocity stage)
+    k2 = 0
+    ge = 0.0
+    for k in range(na):
+        p = act[k]
+        if am[k] > 0.0:
+            act[k2] = p
+            am[k2] = am[k]
+            k2 += 1
+            g = abs(_gap(x, pairs[p, 0], pairs[p, 1], pf[p, 0], pf[p, 1], pf[p, 2],
+                         thickness))
+            ge = g if g > ge else ge
+        else:
+            mark[p] = 0
+    na = k2
+    for p in range(npairs):
+        if mark[p] >= 0:
+            g = -_gap(x, pairs[p, 0], pairs[p, 1], pf[p, 0], pf[p, 1], pf[p, 2], thickness)
+            ge = g if g > ge else ge
+    meta[_NACT] = na
+    if na > meta[_MAXACT]:
+        meta[_MAXACT] = na
+    if na > 0:
+        meta[_STEPS] += 1
+    if ge / thickness > stat[_GAPERR]:
+        stat[_GAPERR] = ge / thickness
+    return 1
+
+
+@numba.njit(cache=True)
+def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates, equal_active,
+                       ck):
+    """Velocity stage: where the rod touches itself (gap within tolerance at ``x``), remove
+    the approaching relative normal velocity (restitution 0), keeping the edges' ``G v = 0``
+    (``keep_rates`` False) or their stretching rates (True).
+
+    ``equal_active``: the contacts the position stage of this step pushed end with zero
+    relative normal velocity (equality; the midpoint method, whose step alone would bounce).
+    ``pos_factor``: the momentum per unit of a position multiplier over ``dt`` (1 for
+    RATTLE, 2 for the midpoint rule), for the contact forces ``ck[14]`` (the mean force of
+    the step on every node).  Returns the number of touching pairs, -1 on failure (the
+    velocities are then left as they came).
+    """
+    meta = ck[0]
+    stat = ck[1]
+    pairs = ck[4]
+    pf = ck[5]
+    act = ck[6]
+    am = ck[7]
+    fc = ck[14]
+    mark = ck[17]
+    n = x.shape[0]
+    m = n - 1
+    npairs = meta[_NPAIRS]
+    nact = meta[_NACT]
+    if npairs == 0:
+        return 0
+    K = act.shape[0]
+    h_min = edge_len.min()
+    xscale = 0.0
+    for i in range(n):
+        xscale = max(xscale, abs(x[i, 0]), abs(x[i, 1]))
+    tol_touch = 1e-9 * h_min + 1e3 * TOL_FLOOR * xscale
+    inv_dt = 1.0 / dt
+    # position impulses of this step into the forces
+    for k in range(nact):
+        p = act[k]
+        i = pairs[p, 0]
+        j = pairs[p, 1]
+        u = pf[p, 0]
+        jx = pos_factor * am[k] * inv_dt * pf[p, 1]
+        jz = pos_factor * am[k] * inv_dt * pf[p, 2]
+        fc[i, 0] += jx
+        fc[i, 1] += jz
+        fc[j, 0] -= (1.0 - u) * jx
+        fc[j, 1] -= (1.0 - u) * jz
+        fc[j + 1, 0] -= u * jx
+        fc[j + 1, 1] -= u * jz
+        meta[_FORCES] = 1
+    # touching pairs: true closest point and normal at x
+    ci = ck[18][1]
+    cn = ck[20][1]
+    cu = ck[21][1]
+    eq = ck[19][1]
+    nc = 0
+    u_prev = 0.0
+    for p in range(npairs):
+        i = pairs[p, 0]
+        j = pairs[p, 1]
+        u, qx, qz = _closest(x, i, j)
+        red = _redundant(pairs, npairs, p, u, u_prev)
+        u_prev = u
+        dd = math.sqrt(qx * qx + qz * qz)
+        if dd - thickness <= tol_touch and dd > 0.0 and not red:
+            if nc >= K:
+                meta[_FAIL] = 2
+                return -1
+            ci[nc, 0] = i
+            ci[nc, 1] = j
+            cu[nc] = u
+            cn[nc, 0] = qx / dd
+            cn[nc, 1] = qz / dd
+            eq[nc] = 1 if (equal_active and mark[p] == 1) else 0
+            nc += 1
+    if nc == 0:
+        if meta[_FORCES] != 0:
+            _finish_forces(fc, inv_dt, stat)
+        return 0
+    vmax = 0.0
+    for i in range(n):
+        vmax = max(vmax, abs(v[i, 0]), abs(v[i, 1]))
+    tol_v = 1e-12 * vmax
+    approaching = False
+    for k in range(nc):
+        vn = (cn[k, 0] * (v[ci[k, 0], 0] - (1.0 - cu[k]) * v[ci[k, 1], 0]
+                          - cu[k] * v[ci[k, 1] + 1, 0])
+              + cn[k, 1] * (v[ci[k, 0], 1] - (1.0 - cu[k]) * v[ci[k, 1], 1]
+                            - cu[k] * v[ci[k, 1] + 1, 1]))
+        if vn < -tol_v or eq[k] == 1:
+            approaching = True
+    if not approaching:
+        if meta[_FORCES] != 0:
+            _finish_forces(fc, inv_dt, stat)
+        return nc
+    vec = ck[11]
+    R = ck[22][0]
+    for e in range(m):
+        R[e, 0] = x[e + 1, 0] - x[e, 0]
+        R[e, 1] = x[e + 1, 1] - x[e, 1]
+    rhs_e = vec[8]
+    rc = vec[9]
+    dl = vec[10]
+    dm = vec[11]
+    bm = ck[8]
+    for k in range(nc):
+        bm[k] = 0.0
+    rates = vec[12]
+    for e in range(m):
+        rates[e] = R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1])
+    # the complementarity problem is solved iteratively: a few refinements from the
+    # remaining residual
+    for rf in range(VELOCITY_REFINEMENTS):
+        for e in range(m):
+            r = R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1])
+            rhs_e[e] = (rates[e] - r) if keep_rates else -r
+        for k in range(nc):
+            i = ci[k, 0]
+            j = ci[k, 1]
+            u = cu[k]
+            rc[k] = -(cn[k, 0] * (v[i, 0] - (1.0 - u) * v[j, 0] - u * v[j + 1, 0])
+                      + cn[k, 1] * (v[i, 1] - (1.0 - u) * v[j, 1] - u * v[j + 1, 1]))
+        if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, True, bm,
+                               eq, 0.1 * tol_v):
+            meta[_FAIL] = 3
+            return -1
+        _apply(v, w, R, dl, nc, ci, cu, cn, dm, 1.0)
+        for k in range(nc):
+            bm[k] += dm[k]
+            dm[k] = bm[k]
+    na = 0
+    for k in range(nc):
+        if dm[k] != 0.0:
+            na += 1
+        i = ci[k, 0]
+        j = ci[k, 1]
+        u = cu[k]
+        jx = dm[k] * cn[k, 0]
+        jz = dm[k] * cn[k, 1]
+        fc[i, 0] += jx
+        fc[i, 1] += jz
+        fc[j, 0] -= (1.0 - u) * jx
+        fc[j, 1] -= (1.0 - u) * jz
+        fc[j + 1, 0] -= u * jx
+        fc[j + 1, 1] -= u * jz
+    if na > meta[_NVEL]:
+        meta[_NVEL] = na
+    meta[_FORCES] = 1
+    _finish_forces(fc, inv_dt, stat)
+    return nc
+
+
+@numba.njit(cache=True)
+def _finish_forces(fc, inv_dt, stat):
+    """Impulses of the step -> mean forces; their total magnitude into the statistics."""
+    tot = 0.0
+    for i in range(fc.shape[0]):
+        fc[i, 0] *= inv_dt
+        fc[i, 1] *= inv_dt
+        tot += math.sqrt(fc[i, 0] * fc[i, 0] + fc[i, 1] * fc[i, 1])
+    stat[_FTOTAL] = 0.5 * tot

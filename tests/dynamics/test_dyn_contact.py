@@ -1,0 +1,160 @@
+"""Self-contact (:class:`dynamics.SelfContact`): collisions conserve momentum and never
+add energy, a rod folded onto itself rests with the gap equal to the thickness and the
+contact force equal to the load it carries, and a run without the effect has no contact
+code.  Both methods."""
+
+import numpy as np
+import pytest
+
+from dynamics import (
+    Damping,
+    Gravity,
+    Ground,
+    PointLoad,
+    RestCriterion,
+    Rod,
+    SelfContact,
+    simulate,
+    stable_dt,
+)
+from dynamics.contact import segment_distances
+
+
+def _from_angles(theta, h, x0=(0.0, 0.0)):
+    x = np.zeros((len(theta) + 1, 2))
+    x[0] = x0
+    for i, t in enumerate(theta):
+        x[i + 1] = x[i] + h * np.array([np.cos(t), np.sin(t)])
+    return x
+
+
+def _hairpin(n, L, r, x0=(0.0, 0.0)):
+    """A straight arm along +x, a half turn of radius ~r, an arm back along -x."""
+    h = L / n
+    k = int(round(np.pi * r / h))
+    n1 = (n - k) // 2
+    theta = np.concatenate([np.zeros(n1), np.linspace(0, np.pi, k + 2)[1:-1],
+                            np.full(n - n1 - k, np.pi)])
+    return _from_angles(theta, h, x0), h
+
+
+def _collision(method, B):
+    # the two arms of a free hairpin thrown at each other (and drifting along x): two
+    # bodies connected far from where they meet
+    x, h = _hairpin(60, 3.0, 0.2)
+    v = np.zeros_like(x)
+    zc = 0.5 * (x[:, 1].max() + x[:, 1].min())
+    tip = x[:, 0].max()
+    v[:, 1] = np.where(x[:, 1] > zc, -0.3, 0.3) * np.minimum(1.0, np.abs(x[:, 0] - tip))
+    v[:, 0] = 0.1
+    rod = Rod(x, v, np.full(60, h), 1.0, B)
+    d = 0.05
+    dt0 = 0.5 * stable_dt(rod.edge_len, 1.0, 0.01)
+    dt = dt0 if method == "rattle" else 4 * dt0
+    res = simulate(rod, (SelfContact(d),), method=method, dt=dt, t_end=3.0,
+                   frames=np.arange(0.0, 3.0, dt))
+    return rod, d, res
+
+
+@pytest.mark.parametrize("method", ["rattle", "midpoint"])
+def test_colliding_arms_conserve_momentum_and_lose_energy(method):
+    rod, d, res = _collision(method, B=0.0)
+    assert res.success, res.message
+    assert res.stats["self_contact_steps"] > 10
+    m = rod.mass
+    p0 = (m[:, None] * rod.v).sum(0)
+    p1 = (m[:, None] * res.velocities).sum(0)
+    # contact forces are pairwise opposite: momentum to round-off
+    assert np.abs(p1 - p0).max() < 1e-13 * m.sum()
+    assert np.abs(res.contact_forces.sum(0)).max() < 1e-10 * np.abs(res.contact_forces).max()
+    # no bending: the energy is kinetic; the collision is inelastic
+    first = int(np.argmax([segment_distances(p, d, rod.edge_len)[0] < d * (1 + 1e-9)
+                           for p in res.positions]))
+    assert first > 0
+    K = res.energies["kinetic"]
+    assert K[first:].max() <= K[:first].max() * (1 + 1e-12)
+    assert K[-1] < 0.99 * K[0]
+    # never closer than the thickness (beyond the second-order slack of the constraints
+    # linearised at the start of each step), never crossing
+    dmin = min(segment_distances(p, d, rod.edge_len)[0] for p in res.positions)
+    assert dmin > d * (1 - 1e-3)
+    assert res.stats["self_contact_gap_error"] < 1e-7
+    assert res.stats["constraint_error"] < 1e-12
+
+
+@pytest.mark.parametrize("method", ["rattle", "midpoint"])
+def test_energy_never_increases_across_contact(method):
+    rod, d, res = _collision(method, B=0.01)
+    assert res.success, res.message
+    E = res.energies["total"]
+    dists = np.array([segment_distances(p, d, rod.edge_len)[0] for p in res.positions])
+    touching = dists < d * (1 + 1e-9)
+    first = int(np.argmax(touching))
+    assert first > 0 and touching.sum() > 10
+    # before the contact the energy fluctuates by the integrator's O(dt**2) error; from
+    # the first contact on it stays below that envelope and ends lower
+    assert E[first:].max() <= E[:first].max() + 1e-12 * E[0]
+    assert E[-1] < E[0] - 100 * (E[:first].max() - E[:first].min())
+
+
+def _folded(method):
+    # a rod on the ground folded back over itself, its two tails pulled along +x by T and
+    # the fold along -x by 2 T (a racquet held open, else the frictionless fold would
+    # unfold): the upper arm falls onto the lower one and rests on it.  Elastogravity
+    # length (B / (mu g))**(1/3) = 0.1
+    n, L, r = 80, 2.0, 0.1
+    x, h = _hairpin(n, L, r)
+    x[:, 0] = 2.0 - x[:, 0]  # the lower arm from x = 2 back to the fold near x = 0
+    rod = Rod(x, np.zeros_like(x), np.full(n, h), 1.0, 1e-3)
+    apex = int(np.argmin(x[:, 0]))
+    T = 0.02
+    d = 0.05
+    dt0 = 0.9 * stable_dt(rod.edge_len, 1.0, 1e-3)
+    eff = (Gravity(1.0), Ground(), SelfContact(d), Damping(0.5),
+           PointLoad(0, (T, 0.0), name="tail0"), PointLoad(n, (T, 0.0), name="tail1"),
+           PointLoad(apex, (-2 * T, 0.0), name="fold"))
+    res = simulate(rod, eff, method=method, dt=dt0 if method == "rattle" else 4 * dt0,
+                   t_end=300.0, frames=3, rest=RestCriterion(1e-14, 2.0))
+    return rod, d, res
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["rattle", "midpoint"])
+def test_folded_rod_rests_on_itself_with_the_load_balanced(method):
+    rod, d, res = _folded(method)
+    assert res.status == "at_rest", res.message
+    x = res.positions[-1]
+    n = x.shape[0]
+    # the upper arm: the nodes after the fold; its flat part lies on the lower arm at z = d
+    upper = np.arange(n // 2 + 10, n - 2)
+    flat = upper[np.abs(x[upper, 1] - d) < 1e-6 * d]
+    assert flat.size > 10
+    # neighbours flat too (no bending there, the edges horizontal): the closed form is the
+    # weight of each node
+    flat = flat[np.isin(flat - 1, flat) & np.isin(flat + 1, flat)]
+    assert flat.size > 8
+    assert np.abs(x[: n // 2 - 10, 1]).max() < 1e-12  # the lower arm on the ground
+    assert np.abs(x[flat, 1] - d).max() < 1e-7 * d  # the gap: the thickness
+    fz = res.contact_forces[flat, 1]
+    w = rod.mass[flat] * 1.0
+    assert np.abs(fz / w - 1.0).max() < 1e-6
+    assert np.abs(res.contact_forces[flat, 0]).max() < 1e-6 * w.max()
+    assert res.stats["self_contact_gap_error"] < 1e-6
+
+
+def test_without_the_effect_no_contact_code():
+    from dynamics import midpoint, rattle
+
+    for mod in (rattle.compile_stepper((Gravity(1.0),)),
+                midpoint.compile_stepper((Gravity(1.0),))):
+        assert mod.HAS_CONTACT is False
+    for mod in (rattle.compile_stepper((Gravity(1.0), SelfContact(0.1))),):
+        assert mod.HAS_CONTACT is True
+
+
+def test_bad_self_contact_is_refused_by_name():
+    with pytest.raises(ValueError, match="thickness must be > 0"):
+        SelfContact(0.0)
+    with pytest.raises(ValueError, match="at most one self-contact"):
+        simulate(Rod.straight(10, 1.0), (SelfContact(0.1), SelfContact(0.2, name="b")),
+                 dt=1e-3, t_end=0.01)
