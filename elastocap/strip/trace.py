@@ -67,7 +67,6 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -104,10 +103,12 @@ from elastocap.strip.solve import (
     Equilibrium,
     lagrangian_hessian,
     open_state,
-    refine as refine_equilibrium,
     solve_equilibrium,
     stability,
     wrapped_state,
+)
+from elastocap.strip.solve import (
+    refine as refine_equilibrium,
 )
 
 __all__ = ["CHORD_STOP", "DEFAULTS", "NOT_HANDLED", "SEARCH", "STRIP", "ActiveSetEvent",
@@ -1235,7 +1236,11 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
     """Search, then the special points, kind changes, window and open branch's end.
     ``follow`` (another resolution's analysis): trace the same branches, seeded as there,
     instead of every seed (:func:`_follow`)."""
-    kw = _follow(follow, strip) if follow is not None else {}
+    kw = {}
+    if follow is not None:
+        # following, not searching: no neighbour seeds and one round
+        kw = {**_follow(follow, strip),
+              "settings": SEARCH.replace(neighbour_seeds=False, max_rounds=1)}
     branches, labels, res = search_contact_branches(strip, lo, hi, progress, **kw)
     folds = _fold_list(strip, branches, labels)
     kinds = _kind_changes(strip, branches, labels)
