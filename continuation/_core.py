@@ -609,9 +609,16 @@ def _polish_on_arc(core, run, k, func, xr, prec):
     if not h > 0.0:
         return xr, prec
     ss = s0 + h * _POLISH_OFFSETS
+    row = core.wrow(ta)
     xs, fs = [], []
     for sv in ss:
-        r = _point_at(core, xa, ta, sv)
+        # corrected to the round-off floor (1e-2 newton_tol, or as far as it goes below
+        # newton_tol): the interpolation carries the points' errors into the root
+        xp = xa + sv * ta
+        r = core.correct(xp, row, float(row @ xp), tol=1e-2 * core.s.newton_tol,
+                         max_iter=2 * core.s.max_newton)
+        if not r.ok and r.normF <= core.s.newton_tol:
+            r.ok = True
         if not r.ok:
             return xr, prec
         xs.append(r.x)

@@ -11,8 +11,6 @@ one-parameter search knows nothing of this curve (``fold_curve_seeds=False``).
 
 import functools
 
-import numpy as np
-
 from continuation import ContinuationSettings, continue_fold
 from elastocap.scene import load_scene
 from elastocap.statics.branches import trace_branches
@@ -64,4 +62,7 @@ def curve_folds(A, lo, hi):
             sp = locate_fold(family(A), U[:-1], U[-1])
             if sp.located and lo <= sp.p <= hi:
                 out.append(float(sp.p))
-    return sorted(set(np.round(out, 11)))
+    # the curves through the reference folds may be one curve traced twice: a crossing
+    # found on both (to 1e-9) is one fold
+    out.sort()
+    return [float(v) for i, v in enumerate(out) if i == 0 or v - out[i - 1] > 1e-9]

@@ -1,11 +1,20 @@
 """Completeness across the free-rod family: the one-parameter search in Delta finds every
 fold that the (Delta, A) fold curve crosses at the scene's area, and every fold it finds
-lies on that curve (to 1e-8). The search runs without its fold-curve seeds
-(``fold_curve_seeds=False``), so the two computations are independent.
+lies on that curve (to 1e-8). The reference curves are continued once from the folds of
+a reference scene (tests/statics/family.py).
 
-A fixed subset of scenes spread over the family runs by default; the hypothesis test over
-random admissible scenes (A 0.5..1.9, L 3..8, the drop anywhere it fits, any Delta range
-inside the admissible one) is marked slow.
+The ten fixed scenes and the unsteered random test run the search without its fold-curve
+starts (``fold_curve_seeds=False``: seeds, neighbour seeds and switching only), so the two
+computations are independent. The scenes drawn around their folds run the search as it
+runs by default (with the fold-curve starts of the folds it found, continued from this
+scene, not from the reference): at A = 1.7045, Delta in [3.19, 6.42], the seed-only search
+misses the segment of the open state that starts at its fold Delta = 4.893 (the gap that
+the BranchSearch docstring names: a segment between samples outside every deflated
+basin); the fold-curve starts find it.
+
+The fixed scenes and two drawn scenes run by default; the 60 draws and the unsteered
+random test (A 0.5..1.9, L 3..8, the drop anywhere it fits, any Delta range inside the
+admissible one) are marked slow.
 """
 
 import math
@@ -27,13 +36,13 @@ def _scene(A, L, c, lo):
                                     "drop.wetted_length": lo})
 
 
-def check_scene(A, L, c, lo, hi):
+def check_scene(A, L, c, lo, hi, fold_curve_seeds=False):
     """Search at one scene; compare with the fold curve.
 
     Returns (number of folds in range, largest |search - curve| over them)."""
     sc = _scene(A, L, c, lo)
     bs = trace_branches(sc, "drop.wetted_length", (lo, hi), error_estimates=False,
-                        fold_curve_seeds=False)
+                        fold_curve_seeds=fold_curve_seeds)
     a, b = bs.prange
     span = b - a
     # a fold within 1e-6 of a range end may end the branch before it turns: not asserted
@@ -162,7 +171,8 @@ def _check_family(max_examples, min_scenes):
               suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
     @given(scenes_with_folds())
     def one(scene):
-        n, worst = check_scene(*scene)
+        # the search as it runs by default: seeds and the fold-curve starts of its own folds
+        n, worst = check_scene(*scene, fold_curve_seeds=True)
         rows.append((scene, n, worst))
 
     one()
