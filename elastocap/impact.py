@@ -248,12 +248,13 @@ def impact_settings(scene: Scene) -> dict:
     L = scene.rod.length
     delta = scene.drop.wetted_length
     n = edge_count(scene)
-    n_min = math.ceil(MIN_WET_EDGES * L / delta * (1.0 - 1e-12))
+    n_min = MIN_WET_EDGES * L / delta * (1.0 - 1e-12)
+    n_min = math.ceil(n_min) if n_min < 1e15 else n_min
     if n < n_min:
         raise SceneError(
             "numerics.n_edges", n,
             f"the wet interval Delta = {delta:.4g} spans {n * delta / L:.3g} edges; at least "
-            f"{MIN_WET_EDGES} are needed (n_edges >= {n_min} for L = {L:.4g}), or 0 for the "
+            f"{MIN_WET_EDGES} are needed (n_edges >= {n_min:.15g} for L = {L:.4g}), or 0 for the "
             "accuracy preset")
     h = L / n
     dt_max = stable_dt(np.full(n, h), scene.rod.mass_per_length, scene.rod.bending_modulus)
