@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from elastocap.io import write_json
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.statics.bistability import admissible_curve, fold_curves, plot_bistability
@@ -24,5 +24,5 @@ def main(out_dir, fast: bool = False) -> list[Path]:
         q, d, extrema = admissible_curve(bs.problem, c, "drop.area")
         data["curves"].append({"area": q.tolist(), "delta": d.tolist(),
                                "extrema": [list(e) for e in extrema]})
-    js.write_text(json.dumps(record(data, scene, N=bs.metadata["N"]), indent=1))
+    write_json(js, record(data, scene, N=bs.metadata["N"]), indent=1)
     return [png, js]

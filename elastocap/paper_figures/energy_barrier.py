@@ -16,7 +16,6 @@ mu g l_eg^2 = B / l_eg.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -24,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from elastocap.io import atomic_path, write_json
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.strip.barrier import barrier, barrier_graph, kinetic_energy
@@ -166,11 +166,12 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     ax2.legend(fontsize=7)
     fig.tight_layout()
     png = out / "energy_barrier.png"
-    fig.savefig(png, dpi=120)
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, dpi=120)
     plt.close(fig)
 
     js = out / "energy_barrier.json"
-    js.write_text(json.dumps(record({
+    write_json(js, record({
         "units": "energies in mu g l_eg^2 = B / l_eg; lengths in l_eg",
         "method": "string method (E, Ren & Vanden-Eijnden 2007) with the ground as a "
                   "constraint, Newton refinement to an index-1 saddle, descents both ways "
@@ -185,5 +186,5 @@ def main(out_dir, fast: bool = False) -> list[Path]:
                        "lowest barrier is an upper bound of the true lowest); rod-rod "
                        "contact",
     }, scene, fast=fast, n=n, n_refined=REFINE * n,
-        cases={str(k): list(v) for k, v in cases.items()}), indent=1))
+        cases={str(k): list(v) for k, v in cases.items()}), indent=1)
     return [png, js]

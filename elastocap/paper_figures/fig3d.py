@@ -18,11 +18,11 @@ the same resolution (:func:`fig3d_resolution`).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from elastocap.io import write_json
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.sweep import plot_phase_diagram, run_sweep, sweep_resolutions
@@ -90,5 +90,5 @@ def main(out_dir, fast: bool = False, workers: int | None = None,
                          "boundary": comp.to_dict()["boundary"],
                          "counts": comp.to_dict()["counts"],
                          "wall_time_s": comp.wall_time_s}
-    js.write_text(json.dumps(record(body, scene, fast=fast), indent=1))
+    write_json(js, record(body, scene, fast=fast), indent=1)
     return [png, js]

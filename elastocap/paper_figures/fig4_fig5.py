@@ -22,6 +22,7 @@ from pathlib import Path
 
 from elastocap.frames import frame_strip
 from elastocap.impact import run_impact
+from elastocap.io import write_json
 from elastocap.paper_figures import record
 from elastocap.paper_figures.fig3d import FIG3D_DAMPING, FIG3D_T_MAX, fig3d_resolution
 from elastocap.scene import load_scene
@@ -98,5 +99,5 @@ def main(out_dir, fast: bool = False) -> list[Path]:
                          "t_end": res.t_end, "n_edges": res.settings.get("n_edges"),
                          "fig3d_threshold": _threshold_at(out, spec["x"])}
     js = out / "fig4_fig5.json"
-    js.write_text(json.dumps(record(summary, scene, fast=fast), indent=1))
+    write_json(js, record(summary, scene, fast=fast), indent=1)
     return [*files, js]

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from elastocap.io import write_json
 from elastocap.overlay import run_overlay
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
@@ -19,5 +19,5 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     deltas = np.linspace(2.5, 4.5, 3 if fast else 9)
     res = run_overlay(scene, deltas, out)
     js = out / "overlay.json"
-    js.write_text(json.dumps(record({"runs": res["runs"]}, scene, fast=fast), indent=1))
+    write_json(js, record({"runs": res["runs"]}, scene, fast=fast), indent=1)
     return [Path(f) for f in res["files"]] + [js]

@@ -27,6 +27,7 @@ import math
 import sys
 from pathlib import Path
 
+from elastocap.io import atomic_path, write_json
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.strip.trace import trace_contact_branches
@@ -239,7 +240,8 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.set_title(title, fontsize=8)
     png = out / "strip_bistability.png"
-    fig.savefig(png, bbox_inches="tight")
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, bbox_inches="tight")
 
     unsettled = [{"x": r["x"], "end": side, "n": r["n"], "change": r[f"{side}_change"],
                   "values": [r[f"{key}_coarse"], r[key]]}
@@ -269,8 +271,8 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
         ],
     }
     js = out / "strip_bistability.json"
-    js.write_text(json.dumps(record(data, scene, fast=fast, x=list(xs), n=list(ns),
-                                    d_range=[D_LO, D_HI]), indent=1))
+    write_json(js, record(data, scene, fast=fast, x=list(xs), n=list(ns),
+                                    d_range=[D_LO, D_HI]), indent=1)
     return [png, js]
 
 

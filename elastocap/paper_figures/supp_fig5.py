@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from elastocap.frames import frame_strip
 from elastocap.impact import run_impact
+from elastocap.io import write_json
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 
@@ -33,5 +33,5 @@ def main(out_dir, fast: bool = False) -> list[Path]:
         files.append(png)
         summary[tag] = {"wetted_length": delta, **res.to_dict()}
     js = out / "supp-fig5.json"
-    js.write_text(json.dumps(record(summary, scene, fast=fast), indent=1))
+    write_json(js, record(summary, scene, fast=fast), indent=1)
     return [*files, js]

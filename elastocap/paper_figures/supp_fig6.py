@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from elastocap.io import write_json
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.statics.branches import trace_branches
@@ -28,19 +28,18 @@ def main(out_dir, fast: bool = False) -> list[Path]:
         title=r"Supplementary Fig 6: $A/\ell_{ec}^2 = 1.5$, $L/\ell_{ec} = 4.6$",
     )
     js = out / "supp-fig6.json"
-    js.write_text(
-        json.dumps(
-            record(
-                {
-                    "folds": bs.folds,
-                    "branch_points": bs.branch_points,
-                    "maxwell_points": bs.maxwell_points,
-                },
-                scene,
-                N=bs.metadata["N"],
-                newton_tol=bs.metadata["newton_tol"],
-            ),
-            indent=2,
-        )
+    write_json(
+        js,
+        record(
+            {
+                "folds": bs.folds,
+                "branch_points": bs.branch_points,
+                "maxwell_points": bs.maxwell_points,
+            },
+            scene,
+            N=bs.metadata["N"],
+            newton_tol=bs.metadata["newton_tol"],
+        ),
+        indent=2,
     )
     return [png, js]
