@@ -94,7 +94,7 @@ def _pitchfork_by_symmetry(problem, u0, p0, width=3e-3):
 
 def test_branch_points_agree_with_the_symmetry_computation(fig6):
     """Each located pitchfork agrees with the independent symmetric-subspace computation
-    at the same resolution (measured: 3e-13 and 7e-14); the gap to the N = 40 values of
+    at the same resolution (measured: 6e-13 and 2e-14); the gap to the N = 40 values of
     the test above is the discretization error (1e-11 and 4e-11)."""
     points = [(sp, br) for br in fig6.branches
               if np.max(np.abs(br.observables["asymmetry"])) < 1e-6
