@@ -10,7 +10,6 @@ from dynamics import (
     Damping,
     Gravity,
     Ground,
-    PointLoad,
     RestCriterion,
     Rod,
     SelfContact,
@@ -18,6 +17,7 @@ from dynamics import (
     stable_dt,
 )
 from dynamics.contact import segment_distances
+from dyn_ext_kernels import Pull
 
 
 def _from_angles(theta, h, x0=(0.0, 0.0)):
@@ -112,9 +112,7 @@ def _folded(method):
     T = 0.02
     d = 0.05
     dt0 = 0.9 * stable_dt(rod.edge_len, 1.0, 1e-3)
-    eff = (Gravity(1.0), Ground(), SelfContact(d), Damping(0.5),
-           PointLoad(0, (T, 0.0), name="tail0"), PointLoad(n, (T, 0.0), name="tail1"),
-           PointLoad(apex, (-2 * T, 0.0), name="fold"))
+    eff = (Gravity(1.0), Ground(), SelfContact(d), Damping(0.5), Pull(0, n, apex, T))
     res = simulate(rod, eff, method=method, dt=dt0 if method == "rattle" else 4 * dt0,
                    t_end=300.0, frames=3, rest=RestCriterion(1e-14, 2.0))
     return rod, d, res
