@@ -101,6 +101,11 @@ TOL_FLOOR = 4e-16
 #: round-off (measured: 2e-8 on a rod folded flat onto itself).
 TOL_REDUNDANT = 1e-7
 
+#: The velocity stage is skipped when the position stage projected nothing and every listed
+#: pair's gap exceeds this fraction of the shortest edge (far above the second-order
+#: difference between the linearised and the true gap within a step).
+TOUCH_SKIP = 1e-3
+
 #: Relative diagonal shift of the contacts' capacitance matrix (see the module notes).
 REGULARISATION = 1e-11
 
@@ -113,7 +118,7 @@ PGS_MAX_SWEEPS = 2000
 # rows of meta (int64)
 _NPAIRS, _VALID, _REBUILDS, _NACT, _MAXACT, _STEPS, _ROUNDS, _FAIL, _FORCES, _NVEL = range(10)
 # rows of stat (float64)
-_GAPERR, _PENETRATION, _FTOTAL, _SKIN = range(4)
+_GAPERR, _PENETRATION, _FTOTAL, _SKIN, _GMIN = range(5)
 
 
 def check_self_contact(effect, effects):
@@ -202,7 +207,7 @@ def new_contact_work(edge_len):
     s_arc = np.zeros(n)
     s_arc[1:] = np.cumsum(edge_len)
     P = PAIRS_PER_NODE * n
-    return (np.zeros(10, dtype=np.int64), np.zeros(4), np.zeros((n, 2)), s_arc,
+    return (np.zeros(10, dtype=np.int64), np.zeros(5), np.zeros((n, 2)), s_arc,
             np.zeros((P, 2), dtype=np.int64), np.zeros((P, 4)),
             np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros((K, m)),
             np.zeros((K, K)), np.zeros((13, max(m, K) + 2)), np.zeros(H + n, dtype=np.int64),
@@ -709,10 +714,12 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
         if not _rebuild(x, thickness, skin, ck):
             return -1
     npairs = meta[_NPAIRS]
+    stat[_GMIN] = np.inf
     if npairs == 0:
         return 0
     # narrow phase: normals at xo, gaps at x
     worst = 0.0
+    gmin = np.inf
     u_prev = 0.0
     for p in range(npairs):
         i = pairs[p, 0]
@@ -736,8 +743,10 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
         pf[p, 3] = g
         mark[p] = -1 if _redundant(pairs, npairs, p, u, u_prev) else 0
         u_prev = u
-        if mark[p] == 0 and -g > worst:
-            worst = -g
+        if mark[p] == 0:
+            worst = -g if -g > worst else worst
+            gmin = g if g < gmin else gmin
+    stat[_GMIN] = gmin
     if worst == 0.0:
         return 0
     if worst > stat[_PENETRATION] * thickness:
@@ -908,8 +917,11 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
     nact = meta[_NACT]
     if npairs == 0:
         return 0
-    K = act.shape[0]
     h_min = edge_len.min()
+    if nact == 0 and stat[_GMIN] > TOUCH_SKIP * h_min:
+        # no projection this step and every listed pair clear of contact: nothing touches
+        return 0
+    K = act.shape[0]
     xscale = 0.0
     for i in range(n):
         xscale = max(xscale, abs(x[i, 0]), abs(x[i, 1]))

@@ -369,7 +369,7 @@ def simulate(rod, effects=(), *, method="rattle", dt, t_end, frames=None, events
         ``"rattle"`` (:mod:`dynamics.rattle`): explicit, symplectic, ``dt`` bounded by
         :func:`dynamics.stable_dt`.  ``"midpoint"`` (:mod:`dynamics.midpoint`): the
         constrained implicit midpoint rule, ``dt`` set by accuracy only (force and damping
-        effects, and at most one ground).
+        effects, at most one ground, and the self-contact).
     dt : float
         Time step (time units).
     t_end : float
