@@ -121,7 +121,7 @@ def _folded(method):
 @pytest.mark.slow
 @pytest.mark.xfail(reason="the scene comes to rest (RATTLE, t < 300) without its upper arm "
                    "lying flat on the lower one: the fold's equilibrium under the pull is "
-                   "not yet the stacked state this closed form needs", strict=False)
+                   "not yet the stacked state this closed form needs", strict=True)
 @pytest.mark.parametrize("method", ["rattle", "midpoint"])
 def test_folded_rod_rests_on_itself_with_the_load_balanced(method):
     rod, d, res = _folded(method)
