@@ -248,7 +248,8 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
                  for r in rows for side, key in (("open", "open_max"),
                                                  ("wrapped", "wrapped_min"),
                                                  ("deposition", "deposition_end"))
-                 if not r[f"{side}_settled"]]
+                 # rows computed without the static prediction have no deposition end
+                 if f"{side}_settled" in r and not r[f"{side}_settled"]]
     data = {
         "rows": rows,
         "unsettled": unsettled,
