@@ -236,7 +236,7 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
             ls="none",
             label=f"frame-independent criterion disagrees ({len(dis)})",
         )
-    same_var = hkey == rep["variable"]
+    same_var = hkey == rep.get("variable", hkey)  # a diagram without runs may omit it
     if companion is not None:
         _draw_thresholds(ax, companion, hkey, same_var, companion=True)
     _draw_thresholds(ax, rep, hkey, same_var, companion=False)
