@@ -21,10 +21,11 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 
 import numpy as np
-from wp_common import IMG, load_record, median_time, save_record, table, wp_plot
+from wp_common import IMG, OUT, load_record, median_time, save_record, table, wp_plot
 
 from dynamics import Clamp, euler_bernoulli_omega, simulate, stable_dt
 from dynamics.reference import crossing_period
@@ -193,10 +194,10 @@ def _series(rows, key="error"):
         rs = [r for r in rows if r["frac"] == frac]
         out.append(
             {
-                "label": f"dt = {frac:g} x bound",
+                "label": rf"$\Delta t$ = {frac:g} $\times$ stability bound",
                 "time": [r["time"] for r in rs],
                 "error": [r[key] for r in rs],
-                "notes": [f"N={r['n']}" for r in rs],
+                "notes": [f"$N$ = {r['n']}" for r in rs],
             }
         )
     return out
@@ -229,17 +230,18 @@ def report(rec, plot=True):
             rs = [r for r in s["rows"] if r.get("rest", 1e-6) == rk and r["frac"] == 0.5]
             series.append(
                 {
-                    "label": f"rest_kinetic = {rk:.0e}, dt = 0.5 x bound",
+                    "label": rf"rest at $E_k$ < {rk:.0e}, "
+                             r"$\Delta t$ = 0.5 $\times$ stability bound",
                     "time": [r["time"] for r in rs],
                     "error": [r["error"] for r in rs],
-                    "notes": [f"N={r['n']}" for r in rs],
+                    "notes": [f"$N$ = {r['n']}" for r in rs],
                 }
             )
         if plot:
             wp_plot(
                 IMG / "wp-dynamics-shape.png",
                 series,
-                f"final measure of the Δ = {SHAPE_DELTA} impact vs statics",
+                rf"final measure $M$ of the $\Delta$ = {SHAPE_DELTA} impact against the statics",
             )
     if "frequency" in rec:
         f = rec["frequency"]
@@ -297,7 +299,7 @@ def report(rec, plot=True):
             wp_plot(
                 IMG / "wp-dynamics-threshold.png",
                 _series([r for r in th["rows"] if r.get(key) is not None], key),
-                "Δ* error (vs Richardson of 100/200 edges), supp-fig5",
+                r"error of $\Delta^*$ (against Richardson of 100 and 200 edges), supp-fig5",
                 xlabel="wall time of the bisection [s]",
             )
 
@@ -330,6 +332,10 @@ if __name__ == "__main__":
     ap.add_argument("--plot", action="store_true", help="redraw from out/wp/*.json only")
     a = ap.parse_args()
     if a.plot:
-        report({k: load_record(f"dynamics-{k}") for k in ("frequency", "shape", "threshold")})
+        parts = [k for k in ("frequency", "shape", "threshold")
+                 if (OUT / f"dynamics-{k}.json").is_file()]
+        if not parts:
+            sys.exit(f"wp_dynamics --plot: no record in {OUT}; run it without --plot first")
+        report({k: load_record(f"dynamics-{k}") for k in parts})
     else:
         main(a.fast, a.only)

@@ -71,10 +71,7 @@ def frame_strip(
         paper shows "only a fraction of the strip"); default: the whole rod, or
         x + Delta + 2 for scenes with a ground.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from elastocap.figure import new_figure
 
     sim = result.simulation
     times, pos = sim.times, sim.positions
@@ -110,13 +107,8 @@ def frame_strip(
     ncol = min(len(panels), 4)
     nrow = -(-len(panels) // ncol)
     pw = 2.4  # inches a panel
-    fig, axes = plt.subplots(
-        nrow,
-        ncol,
-        figsize=(pw * ncol, nrow * (pw * min(hgt / w, 1.2) + 0.3) + 0.3),
-        dpi=130,
-        squeeze=False,
-    )
+    fig = new_figure((pw * ncol, nrow * (pw * min(hgt / w, 1.2) + 0.3) + 0.3))
+    axes = fig.subplots(nrow, ncol, squeeze=False)
     bar, unit = _scale_bar(scene, w)
     for a in axes.flat[len(panels):]:
         a.axis("off")

@@ -55,6 +55,9 @@ class OutputError(ValueError):
         self.allowed = allowed
         super().__init__(f"{key}: got {value!r}; {allowed}")
 
+    def __reduce__(self):  # pickles, as the exceptions with a plain constructor do
+        return type(self), (self.key, self.value, self.allowed)
+
 
 def check_stem(name: str) -> str | None:
     """Why ``name`` is not a safe file stem (None when it is one)."""
@@ -291,15 +294,11 @@ class OutputFolder:
 
     def savefig(self, fig_or_plot, name: str, **kwargs) -> Path:
         """Save a matplotlib figure atomically as ``name``; or call ``fig_or_plot(path)``,
-        a plotting function that draws and saves, and close the figure it returns (it was
-        made for this file: pyplot would otherwise keep it open)."""
+        a plotting function that draws and saves (the toolkit's figures hold no pyplot
+        state, see :mod:`elastocap.figure`, so nothing is left to close)."""
         with self.file(name) as tmp:
             if callable(fig_or_plot):
-                fig = fig_or_plot(tmp)
-                if hasattr(fig, "savefig"):
-                    import matplotlib.pyplot as plt
-
-                    plt.close(fig)
+                fig_or_plot(tmp)
             else:
                 fig_or_plot.savefig(tmp, **kwargs)
         return self.path / name

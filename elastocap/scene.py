@@ -65,6 +65,9 @@ class SceneError(ValueError):
             text = f"{text[:40]}... ({len(text)} characters)"
         super().__init__(f"{key}: got {text}; {allowed}")
 
+    def __reduce__(self):  # pickles (a sweep worker's refusal reaches the sweep intact)
+        return type(self), (self.key, self.value, self.allowed)
+
 
 # ---------------------------------------------------------------------------------------------
 # schema: section -> key -> (kind, default). kind: "pos" (finite > 0), "nonneg" (finite >= 0),

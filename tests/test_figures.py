@@ -62,8 +62,18 @@ def figs(tmp_path_factory):
         seen[m.group(1) + m.group(2) if m else name] = _describe(self)
         return save(self, fname, *a, **kw)
 
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    def process_wide(*a, **kw):
+        raise AssertionError("a figure touched process-wide matplotlib state (pyplot or "
+                             "matplotlib.use); use elastocap.figure.new_figure")
+
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(Figure, "savefig", savefig)
+        for name in ("figure", "subplots", "subplot_mosaic", "gcf", "gca"):
+            mp.setattr(plt, name, process_wide)
+        mp.setattr(matplotlib, "use", process_wide)
         written = run_figures(out, fast=True)
     return out, written, seen
 

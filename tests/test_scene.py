@@ -175,3 +175,24 @@ def test_rod_thickness_key():
                                         "experiment.thickness=1e-4"])
     leg = e.experiment.l_eg
     assert math.isclose(e.rod.thickness, 1e-4 / leg, rel_tol=1e-12)
+
+
+def test_every_toolkit_error_pickles_with_its_fields():
+    """A worker's refusal crosses a process boundary (the sweep's pool, dask) intact."""
+    import pickle
+
+    from continuation import JacobianError
+    from dynamics.cache import CacheError
+    from elastocap.io import OutputError
+    from elastocap.scene import SceneError
+    from elastocap.statics.branches import StaticsError
+    from elastocap.sweep.store import StoreError
+
+    for err in (SceneError("drop.area", 1e300, "expected 0 < area < 10"),
+                OutputError("--out", "/x", "expected a writable folder")):
+        back = pickle.loads(pickle.dumps(err))
+        assert type(back) is type(err) and str(back) == str(err)
+        assert (back.key, back.value, back.allowed) == (err.key, err.value, err.allowed)
+    for cls in (StaticsError, StoreError, JacobianError, CacheError):
+        back = pickle.loads(pickle.dumps(cls("what went wrong")))
+        assert type(back) is cls and str(back) == "what went wrong"

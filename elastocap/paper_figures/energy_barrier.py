@@ -109,10 +109,7 @@ def graph_rows(scene, x: float, deltas, n: int) -> list[dict]:
 
 def main(out_dir, fast: bool = False) -> list[Path]:
     """Writes ``energy_barrier.png`` and ``energy_barrier.json``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from elastocap.figure import new_figure
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -129,7 +126,8 @@ def main(out_dir, fast: bool = False) -> list[Path]:
                   f"(n = {REFINE * n}) [{time.perf_counter() - t0:.0f} s]", file=sys.stderr)
         graphs += graph_rows(scene, x, deltas, n)
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig = new_figure((10, 4.2), dpi=100)
+    ax1, ax2 = fig.subplots(1, 2)
     for k, x in enumerate(cases):
         rr = [r for r in rows if r["x"] == x and r["status"] == "ok"]
         w = np.array([r["we_sqrt"] for r in rr])
@@ -168,7 +166,6 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     png = out / "energy_barrier.png"
     with atomic_path(png) as tmp:
         fig.savefig(tmp, dpi=120)
-    plt.close(fig)
 
     js = out / "energy_barrier.json"
     write_json(js, record({

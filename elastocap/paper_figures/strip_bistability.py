@@ -205,9 +205,7 @@ def redraw(out_dir, fig3d: str | Path | None = None) -> list[Path]:
 
 def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
     """The PNG and the JSON of :func:`main` from computed ``rows``."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
+    from elastocap.figure import new_figure
     from elastocap.sweep import plot_phase_diagram
 
     out.mkdir(parents=True, exist_ok=True)
@@ -225,8 +223,7 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
         ax = fig.axes[0]
     else:
         title = f"{what}; no dynamic diagram ({path} absent): static band alone"
-        fig = Figure(figsize=(8.0, 4.8), dpi=130)
-        FigureCanvasAgg(fig)
+        fig = new_figure((8.0, 4.8))
         ax = fig.add_subplot()
         ax.set_xlabel(r"$\mathrm{We}^{1/2}$")
         ax.set_ylabel(r"$x/\ell_{eg}$")

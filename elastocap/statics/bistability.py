@@ -129,11 +129,9 @@ def plot_bistability(scene: Scene, bs: BranchSet, curves, q_param: str, path=Non
     the open and the encapsulated one; above the arc from the cusp to the curve's end on
     Delta = L only the encapsulated state is stable, left of the curve only the open one). Returns
     the matplotlib Figure (no pyplot state is touched)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from elastocap.figure import new_figure
 
-    fig = Figure(figsize=(6.4, 5.6), dpi=130)
-    FigureCanvasAgg(fig)  # this figure's own canvas (renderer for layout and savefig)
+    fig = new_figure((6.4, 5.6))
     ax = fig.add_subplot()
     P = bs.problem
     q_name = {"drop.area": "drop area $A$"}.get(q_param, q_param)

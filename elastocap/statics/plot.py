@@ -114,18 +114,16 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None, extra_lege
     -------
     matplotlib.figure.Figure
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from elastocap.figure import new_figure
 
     if insets > 0:
-        fig = plt.figure(figsize=(8.0, 7.4), dpi=130)
+        fig = new_figure((8.0, 7.4))
         gs = fig.add_gridspec(2, max(insets, 1), height_ratios=[3.2, 1.0], hspace=0.25)
         ax = fig.add_subplot(gs[0, :])
         inset_axes = [fig.add_subplot(gs[1, k]) for k in range(insets)]
     else:
-        fig, ax = plt.subplots(figsize=(8.0, 5.6), dpi=130)
+        fig = new_figure((8.0, 5.6))
+        ax = fig.add_subplot()
         inset_axes = []
     drawn = []
     for b, (br, lab) in enumerate(zip(bs.branches, bs.labels, strict=True)):

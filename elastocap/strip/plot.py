@@ -19,12 +19,9 @@ def plot_contact_branch_set(bs, path=None, insets=3):
     folds (o) and the stable window ends (vertical lines). Middle: the turning theta(L)/pi.
     Right: a few shapes of each branch on the ground. Returns the figure; writes ``path``.
     """
-    import matplotlib
+    from elastocap.figure import new_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = plt.figure(figsize=(12, 7.5))
+    fig = new_figure((12, 7.5), dpi=100)
     gs = fig.add_gridspec(2, 2, height_ratios=[3, 2])
     ax, am, axs = fig.add_subplot(gs[0, 0]), fig.add_subplot(gs[0, 1]), \
         fig.add_subplot(gs[1, :])

@@ -58,8 +58,15 @@ from elastocap.scene import Scene
 from elastocap.sweep.executors import SweepExecutor, open_executor
 from elastocap.sweep.grid import SkippedPoint, SweepPoint, grid_points, length_unit, make_point
 from elastocap.sweep.progress import NoProgress, Progress
-from elastocap.sweep.refine import (ENC, OPEN, UND, Boundary, classify_line, decided_status,
-                                    first_threshold)
+from elastocap.sweep.refine import (
+    ENC,
+    OPEN,
+    UND,
+    Boundary,
+    classify_line,
+    decided_status,
+    first_threshold,
+)
 from elastocap.sweep.store import OUTCOMES, ResultStore, StoreError
 from elastocap.sweep.tasks import RESULT_KEYS, run_impact_task, runner_name
 
@@ -125,7 +132,8 @@ def sweep_resolutions(scene: Scene, points, levels: int = 0) -> list[Resolution]
     Level 0: ``numerics.n_edges`` if the scene sets it, else the edges the scene's accuracy
     preset gives the point of largest wetted length Delta
     (:func:`elastocap.impact.impact_settings`), raised where needed so that the smallest
-    Delta spans ``MIN_WET_EDGES`` edges (the impact refuses fewer); the time step is then the scene's
+    Delta spans ``MIN_WET_EDGES`` edges (the impact refuses fewer); the time step is then the
+    scene's
     ``numerics.dt``, or the automatic one for those edges (the same for every point: it
     depends on the edge length and the rod only). Level k: ceil(1.5 n_{k-1}) edges and
     dt_k = min(automatic dt at n_k, dt_{k-1} / 2).

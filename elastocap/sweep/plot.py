@@ -4,12 +4,12 @@ Open circles: open (not encapsulated); filled dots: encapsulated (the paper's cr
 grey triangles: undecided runs, a class of their own (with their count); red crosses: runs
 that failed (no result); a red ring: the companion criterion (:mod:`elastocap.criteria`)
 disagrees; purple diamonds: outcome changes among a line's drawn runs other than its
-threshold (to or from undecided, back to open). Only runs at the sweep's own resolution (level 0) are drawn as
-points. Each line's *threshold* (its first change, open -> encapsulated) is drawn through
-the bracket's midpoint with the half-width as a horizontal error bar: blue where
-verification found that it holds, orange where it is not verified (not checked, moved),
-grey for a decided bracket on a line whose undecided runs lie below it; with
-``companion=``, the frame-independent criterion's thresholds in green. x/l_eg on the
+threshold (to or from undecided, back to open). Only runs at the sweep's own resolution
+(level 0) are drawn as points. Each line's *threshold* (its first change, open ->
+encapsulated) is drawn through the bracket's midpoint with the half-width as a horizontal
+error bar: blue where verification found that it holds, orange where it is not verified (not
+checked, moved), grey for a decided bracket on a line whose undecided runs lie below it;
+with ``companion=``, the frame-independent criterion's thresholds in green. x/l_eg on the
 vertical axis, We^1/2 (or Delta) on the horizontal one.
 Optional experimental points (a CSV with columns x_over_leg, we_sqrt, outcome) as
 squares. The title records the scene, every ``--set`` override and the resolution.
@@ -137,8 +137,8 @@ def _draw_thresholds(ax, rep, hkey, same_var, companion):
         pts[g][2].append(0.5 * (hi - lo))
     # one thin line through every threshold in x order (the boundary as a curve), then each
     # threshold as its bracket, by verification: no line joins brackets of one group only
-    curve = sorted((y, x) for g in ("verified", "unverified") for x, y in zip(pts[g][0],
-                                                                                 pts[g][1]))
+    curve = sorted((y, x) for g in ("verified", "unverified") for x, y in zip(pts[g][0], pts[g][1],
+                                                                             strict=True))
     if len(curve) > 1:
         ax.plot([c[1] for c in curve], [c[0] for c in curve], "-",
                 color="tab:green" if companion else "0.35", lw=0.8, alpha=0.7, zorder=1)
@@ -184,8 +184,7 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
     -------
     matplotlib.figure.Figure
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from elastocap.figure import new_figure
 
     rep = report if isinstance(report, dict) else report.to_dict()
     if companion is not None and not isinstance(companion, dict):
@@ -194,8 +193,7 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
     runs = [r for r in all_runs if not r.get("level")]
     use_we = bool(runs) and all(r.get("we_sqrt") is not None for r in runs)
     hkey = "we_sqrt" if use_we else "wetted_length"
-    fig = Figure(figsize=(8.0, 4.8), dpi=130)
-    FigureCanvasAgg(fig)
+    fig = new_figure((8.0, 4.8))
     ax = fig.add_subplot()
     classes = (
         ("open", "o", {"mfc": "none", "mec": "k"}, "not encapsulated"),
@@ -248,7 +246,8 @@ def plot_phase_diagram(report, path=None, experiments=None, title: str | None = 
         by_x.setdefault(r["x"], []).append((r[hkey], r["outcome"]))
     for x, pairs in by_x.items():
         pairs.sort()
-        changes = [(a, b) for (a, oa), (b, ob) in zip(pairs[:-1], pairs[1:]) if oa != ob]
+        changes = [(a, b) for (a, oa), (b, ob) in zip(pairs[:-1], pairs[1:], strict=True)
+                   if oa != ob]
         if changes and pairs[0][1] == "open":
             changes = changes[1:]
         others += [(0.5 * (a + b), x) for a, b in changes]

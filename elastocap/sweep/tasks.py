@@ -161,9 +161,9 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
     try:
         res = run_impact(scene)
     except Exception as err:
-        # re-raised as a plain RuntimeError: an exception with its own constructor (such as
-        # SceneError) does not unpickle in the sweep's process, and the pool would read
-        # that as a dead worker
+        # re-raised as a plain RuntimeError naming the type: the store records every failure
+        # the same way, and an exception from elsewhere that does not unpickle cannot make
+        # the pool read it as a dead worker (the toolkit's own errors all pickle)
         raise RuntimeError(f"{type(err).__name__}: {err}") from None
     if res.outcome == "failed":  # a numerical failure: the sweep records it with the reason
         raise RuntimeError(f"impact failed: {res.message}")

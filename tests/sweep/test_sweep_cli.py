@@ -155,7 +155,8 @@ def test_text_report_marks_every_line_verified_or_not(tmp_path, capsys):
     # x = 0.5: only We^1/2 = 0.5 fits on the strip (open); x = 1: threshold 1.53, holds;
     # x = 3: moves by -0.3
     assert len(lines) == 3
-    assert "all-open" in lines[0] and "NOT verified: line is all-open, no change from open" in lines[0]
+    assert "all-open" in lines[0]
+    assert "NOT verified: line is all-open, no change from open" in lines[0]
     assert "verified: holds at 1.5x the edges" in lines[1]
     assert "NOT verified: moved, the bracket midpoint moves by -0.3" in lines[2]
     assert "[level 1: 117 edges]" in lines[2]  # 1.5 x 78 (4 edges across Delta(0.5))
