@@ -16,7 +16,15 @@ One driver (:mod:`dynamics.driver`), one module per method (:mod:`dynamics.rattl
 
 from .bending import bending_energy, bending_force_add, bending_gradient, discrete_curvature
 from .constraints import constraint_error
-from .driver import METHODS, STATS_KEYS, Event, RestCriterion, SimulationResult, simulate
+from .driver import (
+    METHODS,
+    STATS_KEYS,
+    Event,
+    RestCriterion,
+    SimulationResult,
+    frame_steps,
+    simulate,
+)
 from .effects import (
     Clamp,
     Damping,
@@ -34,6 +42,7 @@ from .rod import Rod
 __all__ = [
     "Rod",
     "simulate",
+    "frame_steps",
     "METHODS",
     "STATS_KEYS",
     "Event",

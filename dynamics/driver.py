@@ -273,7 +273,11 @@ def _resolve_param(effect, param):
     return j
 
 
-def _frame_steps(frames, t_end, dt):
+def frame_steps(frames, t_end: float, dt: float) -> np.ndarray:
+    """The steps ``k`` (times ``k dt``) at which :func:`simulate` records a frame: ``frames``
+    as :func:`simulate` takes it (None for 101, a count >= 2 spread evenly over
+    ``[0, t_end]``, or the times themselves), each time rounded to the nearest step, sorted,
+    without repeats, and within the run's ``ceil(t_end / dt)`` steps."""
     if frames is None:
         frames = 101
     if np.isscalar(frames):
@@ -289,7 +293,8 @@ def _frame_steps(frames, t_end, dt):
                 f"{times.min() if times.size else None}, max "
                 f"{times.max() if times.size else None}"
             )
-    return np.unique(np.rint(times / dt).astype(np.int64))
+    steps = np.unique(np.rint(times / dt).astype(np.int64))
+    return steps[(steps >= 0) & (steps <= int(math.ceil(t_end / dt - 1e-9)))]
 
 
 #: Most steps one run may take (an underflowing dt is refused before it starts: at the
@@ -343,8 +348,7 @@ def schedule(frames, t_end, dt, ev):
     """Steps where a run stops: ``n_total``, the sorted stops (frames, events, the end) and
     the set of frame steps."""
     n_total = int(math.ceil(t_end / dt - 1e-9))
-    fidx = _frame_steps(frames, t_end, dt)
-    fidx = fidx[(fidx >= 0) & (fidx <= n_total)]
+    fidx = frame_steps(frames, t_end, dt)
     stops = sorted(set(fidx.tolist()) | {k for k, *_ in ev} | {n_total})
     return n_total, stops, set(fidx.tolist())
 

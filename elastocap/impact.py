@@ -61,6 +61,7 @@ from dynamics import (
     SelfContact,
     SimulationResult,
     euler_bernoulli_omega,
+    frame_steps,
     simulate,
     stable_dt,
 )
@@ -399,11 +400,9 @@ WET_QUIET_TIME = 2.0
 
 
 def _frame_steps(frames, t_max: float, dt: float) -> np.ndarray:
-    """The steps of the output frames (those :func:`dynamics.simulate` records)."""
-    n_total = int(math.ceil(t_max / dt - 1e-9))
-    nf = frames or min(MAX_FRAMES, int(t_max / FRAME_SPACING) + 1)
-    steps = np.unique(np.rint(np.linspace(0.0, t_max, int(nf)) / dt).astype(np.int64))
-    return steps[(steps >= 0) & (steps <= n_total)]
+    """The steps of the output frames (those :func:`dynamics.simulate` records): ``frames``,
+    or one every ``FRAME_SPACING`` up to ``MAX_FRAMES``."""
+    return frame_steps(int(frames or min(MAX_FRAMES, int(t_max / FRAME_SPACING) + 1)), t_max, dt)
 
 
 class _Segments:
