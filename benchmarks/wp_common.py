@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 IMG = ROOT / "docs" / "img"
 OUT = ROOT / "out" / "wp"
@@ -72,8 +74,27 @@ def _overlaps(bb, others, pad=1.0) -> bool:
                and o.y0 < bb.y1 + pad for o in others)
 
 
+def _line_samples(ax, step_px=1.5):
+    """Points every ``step_px`` pixels along every line drawn on ``ax`` (display space)."""
+    out = []
+    for ln in ax.get_lines():
+        if ln.get_linestyle() in ("None", "", " ") or not ln.get_visible():
+            continue
+        xy = ax.transData.transform(np.column_stack([ln.get_xdata(), ln.get_ydata()]))
+        for a, b in zip(xy[:-1], xy[1:], strict=True):
+            k = max(2, int(np.hypot(*(b - a)) / step_px) + 1)
+            out.append(a + np.linspace(0.0, 1.0, k)[:, None] * (b - a))
+    return np.vstack(out) if out else np.zeros((0, 2))
+
+
+def _crosses(bb, samples, pad=1.0) -> bool:
+    return bool(np.any((samples[:, 0] > bb.x0 - pad) & (samples[:, 0] < bb.x1 + pad)
+                       & (samples[:, 1] > bb.y0 - pad) & (samples[:, 1] < bb.y1 + pad)))
+
+
 def place_point_labels(ax, items, fontsize=7):
-    """Annotate points so that no label overlaps another label, a marker or the axes edge.
+    """Annotate points so that no label overlaps another label, a marker, a line or the axes
+    edge.
 
     ``items``: (x, y, text, color) in data coordinates. Each label takes the first offset of
     ``_LABEL_OFFSETS`` where it is clear; a label with no clear place is dropped rather than
@@ -89,6 +110,7 @@ def place_point_labels(ax, items, fontsize=7):
         px, py = ax.transData.transform((x, y))
         marker_boxes.append(Bbox([[px - 3, py - 3], [px + 3, py + 3]]))
     frame = ax.get_window_extent(renderer)
+    samples = _line_samples(ax)
     placed, boxes = [], []
     for x, y, txt, color in items:
         for dx, dy in _LABEL_OFFSETS:
@@ -98,7 +120,8 @@ def place_point_labels(ax, items, fontsize=7):
             bb = a.get_window_extent(renderer)
             inside = (bb.x0 >= frame.x0 and bb.x1 <= frame.x1 and bb.y0 >= frame.y0
                       and bb.y1 <= frame.y1)
-            if inside and not _overlaps(bb, boxes) and not _overlaps(bb, marker_boxes, 0.0):
+            if (inside and not _overlaps(bb, boxes) and not _overlaps(bb, marker_boxes, 0.0)
+                    and not _crosses(bb, samples)):
                 placed.append(a)
                 boxes.append(bb)
                 break
@@ -127,12 +150,10 @@ def wp_plot(
     Point labels (``notes``) are placed where they overlap nothing; the legend sits outside
     the axes, so it hides no point.
     """
-    import matplotlib
+    from elastocap.figure import new_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.4, 4.2), dpi=110)
+    fig = new_figure((7.4, 4.2), dpi=110)
+    ax = fig.add_subplot()
     items, ts, es = [], [], []
     for k, s in enumerate(series):
         pts = [
@@ -165,5 +186,4 @@ def wp_plot(
     place_point_labels(ax, items)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
-    plt.close(fig)
     return path

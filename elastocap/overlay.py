@@ -184,5 +184,21 @@ def plot_overlay(bs, runs, results, path):
             mec="k",
             zorder=6,
         )
+    _move_fold_labels_below(ax, results)
     fig.savefig(path, bbox_inches="tight")
     return fig
+
+
+def _move_fold_labels_below(ax, results):
+    """Each fold's label moves below every M(t) trace, ending at the fold's Delta: beside
+    the fold it would sit on the traces."""
+    if not results:
+        return
+    low = min(float(np.min(res.measure_history)) for res in results)
+    labels = sorted((t for t in ax.texts if t.get_text().startswith("fold") and hasattr(t, "xy")),
+                    key=lambda t: t.xy[0])
+    for k, txt in enumerate(labels):  # staggered, as beside the folds
+        x = txt.xy[0]
+        txt.xy = (x, low)
+        txt.set_position((0, -4 - 11 * k))
+        txt.set_horizontalalignment("right")  # clear of a Maxwell line right of the fold

@@ -16,6 +16,39 @@ def _boxes_overlap(a, b, pad=0.0) -> bool:
     return a.x0 < b.x1 - pad and b.x0 < a.x1 - pad and a.y0 < b.y1 - pad and b.y0 < a.y1 - pad
 
 
+def _glyph(handle) -> tuple:
+    """What a legend entry's symbol looks like: its kind, colours, marker and line style."""
+    from matplotlib.colors import to_rgba
+
+    def rgba(c):
+        try:
+            return tuple(np.round(to_rgba(c), 3))
+        except (ValueError, TypeError):
+            return str(c)
+
+    if hasattr(handle, "get_marker"):  # a Line2D
+        return ("line", rgba(handle.get_color()), handle.get_marker(),
+                rgba(handle.get_markerfacecolor()), rgba(handle.get_markeredgecolor()),
+                handle.get_linestyle() if handle.get_linestyle() not in ("None", "") else "",
+                round(float(handle.get_linewidth()), 1), handle.get_alpha())
+    if hasattr(handle, "get_facecolor"):  # a patch or a collection
+        fc = handle.get_facecolor()
+        fc = fc[0] if np.ndim(fc) == 2 and len(fc) else fc
+        ec = handle.get_edgecolor()
+        ec = ec[0] if np.ndim(ec) == 2 and len(ec) else ec
+        return (type(handle).__name__, rgba(fc), rgba(ec), str(handle.get_linestyle()))
+    return (type(handle).__name__, id(handle))
+
+
+def _coloured_entries(ax, leg) -> list[str]:
+    from matplotlib.colors import to_rgba
+
+    drawn = {to_rgba(ln.get_color()) for ln in ax.get_lines()
+             if ln.get_visible() and len(ln.get_xdata()) >= 2 and ln.get_linestyle() != "None"}
+    return [t.get_text() for t, h in zip(leg.get_texts(), leg.legend_handles, strict=True)
+            if hasattr(h, "get_color") and to_rgba(h.get_color()) in drawn]
+
+
 def _describe(fig) -> dict:
     """What a reader sees of a figure: its texts with their boxes, legends, axis labels."""
     fig.canvas.draw()
@@ -34,6 +67,9 @@ def _describe(fig) -> dict:
             ]
         axes.append(
             {
+                "glyphs": [_glyph(h) for h in leg.legend_handles] if leg else [],
+                # legend texts whose colour some drawn line of two or more points has
+                "coloured": _coloured_entries(ax, leg) if leg else [],
                 "texts": [(t.get_text(), t.get_window_extent(r)) for t in ax.texts
                           if t.get_visible() and t.get_text()],
                 "legend": [t.get_text() for t in leg.get_texts()] if leg else [],
@@ -180,6 +216,18 @@ def test_legends_have_no_duplicate_entries(figs):
             assert len(ax["legend"]) == len(set(ax["legend"])), (name, ax["legend"])
 
 
+def test_legend_symbols_tell_their_entries_apart(figs):
+    """Two legend entries never share a symbol: a reader matches symbol to text."""
+    _, _, seen = figs
+    for name, d in seen.items():
+        for ax in d["axes"]:
+            by_glyph: dict = {}
+            for text, glyph in zip(ax["legend"], ax["glyphs"], strict=True):
+                by_glyph.setdefault(glyph, []).append(text)
+            same = [t for t in by_glyph.values() if len(t) > 1]
+            assert not same, (name, same)
+
+
 def test_labels_use_mathtext_not_spelled_out_symbols(figs):
     _, _, seen = figs
     spelled = re.compile(r"\bDelta\b|\btheta\b|l_eg|\bpi\b|We\^|ℓ_")
@@ -212,8 +260,10 @@ def test_branch_diagram_explains_every_marker_and_labels_shapes(figs):
     d = seen["supp-fig6.png"]
     main, *panels = d["axes"]
     for entry in ("✕ fold", "□ branch point", "◆ equal energy (Maxwell)", "stable", "unstable",
-                  "inadmissible (crossing)"):
+                  "stable, inadmissible (crossing)", "unstable, inadmissible (crossing)"):
         assert entry in main["legend"], main["legend"]
+    # every branch named in the legend is drawn in its colour somewhere
+    assert not [t for t in main["legend"] if t.startswith("branch") and t not in main["coloured"]]
     titles = [p["labels"][2] for p in panels if p["labels"][2]]
     assert len(titles) == 4 and all(re.fullmatch(r"\([a-d]\)  Δ = \d\.\d\d", t) for t in titles)
     folds = [t for t, _ in main["texts"] if t.startswith("fold")]

@@ -18,11 +18,12 @@ the same resolution (:func:`fig3d_resolution`).
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 
-from elastocap.io import write_json
+from elastocap.io import atomic_path, write_json
 from elastocap.paper_figures import record
 from elastocap.scene import load_scene
 from elastocap.sweep import plot_phase_diagram, run_sweep, sweep_resolutions
@@ -80,15 +81,46 @@ def main(out_dir, fast: bool = False, workers: int | None = None,
     # the frame-independent criterion on the same store: its runs are shared, only its own
     # bisection and verification runs are new
     comp = run_sweep(scene, xs, criterion="companion_outcome", **common)
-    png = out / "fig3d.png"
-    plot_phase_diagram(res, png, companion=comp,
-                       title=f"Fig 3d (model): fig3-strip, damping {FIG3D_DAMPING}; points and "
-                       "threshold: the paper's lab-frame criterion")
-    js = out / "fig3d.json"
     body = res.to_dict()
-    body["companion"] = {"criterion": "companion_outcome",
-                         "boundary": comp.to_dict()["boundary"],
-                         "counts": comp.to_dict()["counts"],
-                         "wall_time_s": comp.wall_time_s}
+    cd = comp.to_dict()
+    body["companion"] = {"criterion": "companion_outcome", "boundary": cd["boundary"],
+                         "counts": cd["counts"], "wall_time_s": comp.wall_time_s}
+    png = _draw(out, body)
+    js = out / "fig3d.json"
     write_json(js, record(body, scene, fast=fast), indent=1)
     return [png, js]
+
+
+def _draw(out: Path, body: dict) -> Path:
+    """``fig3d.png`` from the figure's JSON body (the sweep's report with its companion)."""
+    comp = {**{k: v for k, v in body.items() if k not in ("runs", "companion")},
+            **body["companion"]}
+    png = out / "fig3d.png"
+    with atomic_path(png) as tmp:
+        plot_phase_diagram(body, tmp, companion=comp,
+                           title=f"Fig 3d (model): fig3-strip, damping {FIG3D_DAMPING}; points "
+                           "and threshold: the paper's lab-frame criterion")
+    return png
+
+
+def redraw(out_dir) -> list[Path]:
+    """Redraw ``fig3d.png`` from ``out_dir``'s ``fig3d.json`` without running an impact
+    (``python3 -m elastocap.paper_figures.fig3d DIR --redraw``)."""
+    out = Path(out_dir)
+    js = out / "fig3d.json"
+    if not js.is_file():
+        raise FileNotFoundError(f"fig3d: no {js}; make it with elastocap figures --only fig3d")
+    return [_draw(out, json.loads(js.read_text()))]
+
+
+if __name__ == "__main__":
+    import argparse
+
+    ap = argparse.ArgumentParser(description="Fig 3d: the phase diagram of the strip")
+    ap.add_argument("out", help="output folder")
+    ap.add_argument("--fast", action="store_true", help="one line, two runs (a smoke test)")
+    ap.add_argument("--redraw", action="store_true",
+                    help="redraw DIR/fig3d.png from DIR/fig3d.json without running impacts")
+    a = ap.parse_args()
+    for p in (redraw(a.out) if a.redraw else main(a.out, a.fast)):
+        print(p)

@@ -141,14 +141,14 @@ def _draw_static(ax, rows, sp, w_min):
         if not pts:
             continue
         ax.plot([p[0] for p in pts], [p[1] for p in pts], "-", color=color, lw=1.0, alpha=0.7)
-        k = 0
         for w, x, settled, reached in pts:
             if reached:  # the branch reached the scanned range's end: no end to mark
                 continue
             ax.plot(w, x, marker, color=color, ms=7, mec=color,
-                    mfc=color if settled else "white", mew=1.3,
-                    label=lab.format(n=rows[0]["n"][-1]) if k == 0 else None)
-            k += 1
+                    mfc=color if settled else "white", mew=1.3)
+        # the legend shows the settled (filled) symbol; hollow ones are explained below
+        ax.plot([], [], marker, color=color, ms=7, mec=color, mfc=color, mew=1.3, ls="-",
+                lw=1.0, label=lab.format(n=rows[0]["n"][-1]))
     dep = [(max(r["deposition_end_we_sqrt"], w_min), r["x"], r["deposition_settled"])
            for r in rows if math.isfinite(r.get("deposition_end_we_sqrt", math.nan))]
     if dep:
@@ -158,8 +158,9 @@ def _draw_static(ax, rows, sp, w_min):
                     label="static prediction: the deposited open state is lost"
                     if i == 0 else None)
     ax.plot([], [], "s", mfc="white", mec="0.3", ms=6,
-            label=f"hollow: unsettled (n = {rows[0]['n'][-2] if len(rows[0]['n']) > 1 else '-'}"
-                  f" vs {rows[0]['n'][-1]} differ by > {TOL_DELTA} in " + r"$\Delta$)")
+            label="hollow: unsettled ($n$ = "
+                  f"{rows[0]['n'][-2] if len(rows[0]['n']) > 1 else '-'} and {rows[0]['n'][-1]}"
+                  f" differ by > {TOL_DELTA} in " + r"$\Delta$)")
 
 
 def main(out_dir, fast: bool = False, fig3d: str | Path | None = None) -> list[Path]:
@@ -233,7 +234,11 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
     # the dynamic sweep's range; a band running off the right edge continues beyond it
     w_hi = max((r["we_sqrt"] for r in dyn["runs"] if r.get("we_sqrt") is not None),
                default=4.0) if dyn is not None else 4.0
-    ax.set_xlim(0.0, w_hi + 0.2)
+    # every drawn end inside (an end below Delta0 is drawn at We^(1/2) = 0, left of which
+    # the axis gives room for its marker)
+    w_ends = [r[f"{k}_we_sqrt"] for r in rows for k in ("open_max", "wrapped_min")
+              if math.isfinite(r[f"{k}_we_sqrt"])]
+    ax.set_xlim(-0.15, max([w_hi, *w_ends]) + 0.2)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     ax.set_title(title, fontsize=8)
     png = out / "strip_bistability.png"

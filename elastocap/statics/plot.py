@@ -54,16 +54,22 @@ def _segments(p, y, stable, admissible):
     return runs
 
 
-def _legend_handles(bs, drawn_colors, extra=()):
-    """One legend entry per drawn branch colour, per line style and per marker kind present."""
+def _legend_handles(bs, drawn_colors, extra=(), grey=(True, False)):
+    """One legend entry per drawn branch colour, per line style and per marker kind present;
+    ``grey``: the stabilities (True: stable) of the inadmissible segments drawn."""
     from matplotlib.lines import Line2D
 
     hs = [Line2D([], [], color=col, lw=2.0, label=lab) for lab, col in drawn_colors]
     hs += [
         Line2D([], [], color="k", lw=2.0, ls="-", label="stable"),
         Line2D([], [], color="k", lw=1.2, ls="--", label="unstable"),
-        Line2D([], [], color="0.6", lw=1.2, ls="--", label="inadmissible (crossing)"),
     ]
+    if True in grey:
+        hs.append(Line2D([], [], color="0.6", lw=2.0, ls="-",
+                         label="stable, inadmissible (crossing)"))
+    if False in grey:
+        hs.append(Line2D([], [], color="0.6", lw=1.2, ls="--",
+                         label="unstable, inadmissible (crossing)"))
     if bs.folds:
         hs.append(Line2D([], [], ls="", marker="X", color="k", ms=7, label="✕ fold"))
     if bs.branch_points:
@@ -126,6 +132,7 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None, extra_lege
         ax = fig.add_subplot()
         inset_axes = []
     drawn = []
+    grey = set()  # stabilities of the inadmissible (grey) segments drawn
     for b, (br, lab) in enumerate(zip(bs.branches, bs.labels, strict=True)):
         if not len(br):
             continue
@@ -133,6 +140,7 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None, extra_lege
         yv = br.observables[y]
         stable = br.stability == 0
         adm = br.observables.get("admissible", np.ones(len(br))) > 0.5
+        coloured = False
         for i, j, st, ad in _segments(br.p, yv, stable, adm):
             ax.plot(
                 br.p[i : j + 1],
@@ -141,7 +149,10 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None, extra_lege
                 color=col if ad else "0.6",
                 lw=2.0 if st else 1.2,
             )
-        if adm.any():
+            coloured |= ad and j > i
+            if not ad and j > i:
+                grey.add(st)
+        if coloured:  # a legend entry only for a branch with a visible coloured line
             drawn.append((lab, col))
     for f in bs.folds:
         ax.plot(f["value"], f["measure"], "X", color="k", ms=7, zorder=5)
@@ -158,7 +169,8 @@ def plot_branch_set(bs, path=None, y="measure", insets=4, title=None, extra_lege
     )
     ax.set_title(title or f"{bs.scene.name}: equilibria", fontsize=9)
     ax.grid(alpha=0.25)
-    ax.legend(handles=_legend_handles(bs, drawn, extra_legend), fontsize=7, loc="upper left")
+    ax.legend(handles=_legend_handles(bs, drawn, extra_legend, grey), fontsize=7,
+              loc="upper left")
     _add_insets(ax, inset_axes, bs, y)
     if path is not None:
         fig.savefig(path, bbox_inches="tight")

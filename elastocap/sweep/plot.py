@@ -76,9 +76,10 @@ def settings_line(rep: dict) -> str:
     res = rep.get("resolution")
     parts = []
     if over is not None:  # a report of a sweep made before overrides were recorded: silent
-        parts.append("--set " + ", ".join(over) if over else "no --set overrides")
+        parts.append("scene settings " + ", ".join(o.replace("=", " = ") for o in over)
+                     if over else "the scene's own settings")
     if res:
-        parts.append(f"{res['n_edges']} edges, dt {res['dt']:.3g}")
+        parts.append(f"{res['n_edges']} edges, " + r"$\Delta t$" + f" = {res['dt']:.3g}")
     if rep.get("criterion"):
         parts.append(f"criterion: {rep['criterion']}")
     if rep.get("verify_levels"):
@@ -141,15 +142,20 @@ def _draw_thresholds(ax, rep, hkey, same_var, companion):
                                                                              strict=True))
     if len(curve) > 1:
         ax.plot([c[1] for c in curve], [c[0] for c in curve], "-",
-                color="tab:green" if companion else "0.35", lw=0.8, alpha=0.7, zorder=1)
+                color="tab:green" if companion else "0.35", lw=0.8, alpha=0.7, zorder=1,
+                label=(f"{name}: thresholds joined in x" if companion
+                       else "thresholds joined in x"))
     for g, (color, ls, label) in groups.items():
         bx, by, berr = pts[g]
         if bx:
             # the companion's as larger hollow squares under the paper's diamonds
+            # verified: a filled marker; not verified: a hollow one (a dashed bar alone
+            # would not show in the legend)
+            filled = g == "verified"
             eb = ax.errorbar(bx, by, xerr=berr, color=color, lw=2.6 if companion else 1.4,
                              capsize=4 if companion else 3, marker="s" if companion else "D",
-                             ms=7 if companion else 3.5, mfc="none" if companion else color,
-                             ls="none", label=f"{label} ({_lines(len(bx))})",
+                             ms=7 if companion else 4.5, mfc=color if filled else "white",
+                             mew=1.2, ls="none", label=f"{label} ({_lines(len(bx))})",
                              zorder=2 if companion else 3, alpha=0.6 if companion else 1.0)
             eb[-1][0].set_linestyle(ls)
     # a threshold into undecided runs: the first impacts that leave open are not decided

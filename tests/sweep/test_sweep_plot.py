@@ -72,8 +72,8 @@ def test_undecided_failed_verified_and_the_overrides_in_the_title():
     unc = labels["decided runs' bracket; line has undecided/failed runs (1 line)"]
     np.testing.assert_allclose(np.asarray(unc.lines[0].get_ydata(), float), [1.0])
     title = ax.get_title()
-    assert "--set numerics.accuracy=draft, effects.damping=0.1" in title
-    assert "77 edges, dt 0.0125" in title and "verified to level 1" in title
+    assert "scene settings numerics.accuracy = draft, effects.damping = 0.1" in title
+    assert r"77 edges, $\Delta t$ = 0.0125" in title and "verified to level 1" in title
     assert "+ 1 verification runs" in title
 
 
