@@ -534,12 +534,14 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
 _LOCATE_STALL_FACTOR = 30.0
 
 
-def _point_at(core, x_a, t_a, s_arc):
-    """Corrected point at arclength ``s_arc`` from ``x_a`` along ``t_a``."""
+def _point_at(core, x_a, t_a, s_arc, guess=None):
+    """Corrected point at arclength ``s_arc`` from ``x_a`` along ``t_a`` (Newton on the
+    hyperplane through ``x_a + s_arc t_a`` normal to ``t_a``, started from ``guess`` when
+    given, else from that predictor)."""
     row = core.wrow(t_a)
     xp = x_a + s_arc * t_a
-    r = core.correct(xp, row, float(row @ xp), tol=core.s.newton_tol,
-                     max_iter=2 * core.s.max_newton)
+    r = core.correct(xp if guess is None else guess, row, float(row @ xp),
+                     tol=core.s.newton_tol, max_iter=2 * core.s.max_newton)
     if not r.ok and r.normF <= _LOCATE_STALL_FACTOR * core.s.newton_tol:
         r.ok = True
     return r
@@ -552,17 +554,22 @@ def _bisect_on_arc(core, run, k, func, fa, fb):
     ta = run.t[k - 1]
     sb = core.dot(xb - xa, ta)
     cache = {}
+    # corrected points by arclength: each new one starts from the nearest (Brent's points
+    # close in on the root, so Newton starts ever closer to the solution it converges to)
+    near = {0.0: xa, sb: xb}
 
     def f(sv):
         if sv == 0.0:
             return fa
         if sv == sb:
             return fb
-        r = _point_at(core, xa, ta, sv)
+        s0 = min(near, key=lambda s: abs(s - sv))
+        r = _point_at(core, xa, ta, sv, guess=near[s0] + (sv - s0) * ta)
         if not r.ok:
             raise _LocateError(r.reason)
         val = func(r.x)
         cache[sv] = (r.x, val)
+        near[sv] = r.x
         return val
 
     xtol = core.s.locate_tol * max(1.0, abs(sb))

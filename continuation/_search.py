@@ -301,12 +301,12 @@ def deflated_newton(
             if kd is not None:
                 e = u[idx] - kd
                 r2 = np.einsum("ij,ij->i", e, e)
-                if np.any(r2 == 0.0):
+                if not r2.all():
                     return NewtonResult(u, False, it, rn, "landed on a known solution")
-                rp = r2 ** (0.5 * power)
-                # d/du ln(r^-power + shift) = -power r^(-power-2) e / (r^-power + shift),
-                # summed over the known solutions
-                coef = (-power / (rp * r2)) / (1.0 / rp + shift)
+                rp = r2 if power == 2.0 else r2 ** (0.5 * power)
+                # d/du ln(r^-power + shift) = -power r^(-power-2) e / (r^-power + shift)
+                # = -power e / (r^2 (1 + shift r^power)), summed over the known solutions
+                coef = -power / (r2 * (1.0 + shift * rp))
                 den = 1.0 - float(coef @ (e @ du[idx]))
                 if den == 0.0 or not math.isfinite(den):
                     return NewtonResult(u, False, it, rn, "deflation singular")

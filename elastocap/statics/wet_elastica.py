@@ -101,9 +101,10 @@ def wet_geometry(theta, Qh, wh, K, delta, area, gamma, B):
     """Positions, wet area, chord, cap, the gradients of A0 and d, and grad E_N for angles
     ``theta``.
 
-    Returns ``(x, z, a0, d, tau, sin_tau, cos_tau, lam, kappa, grad_a0, grad_d, k_theta,
-    grad)`` (see :class:`WetState`; ``k_theta = K theta``, ``grad = B (2/Delta) K theta +
-    gamma (-kappa grad_a0 + cos(tau) grad_d)``); the formulas are those of the module
+    Returns ``(G, a0, d, tau, sin_tau, cos_tau, lam, kappa)`` with the rows of ``G`` (6,
+    N+1) ``x, z, grad_a0, grad_d, k_theta, grad`` (see :class:`WetState`; ``k_theta = K
+    theta``, ``grad = B (2/Delta) K theta + gamma (-kappa grad_a0 + cos(tau) grad_d)``; one
+    array, so that one object is boxed per call); the formulas are those of the module
     docstring with ``Q = (Delta/2) Qh`` and ``w = (Delta/2) wh``.
     """
     n = theta.size
@@ -111,8 +112,9 @@ def wet_geometry(theta, Qh, wh, K, delta, area, gamma, B):
     h = 0.5 * delta
     c = np.cos(theta)
     s = np.sin(theta)
-    x = np.empty(n)
-    z = np.empty(n)
+    G = np.empty((6, n))
+    x = G[0]
+    z = G[1]
     for i in range(n):
         ax = 0.0
         az = 0.0
@@ -132,32 +134,37 @@ def wet_geometry(theta, Qh, wh, K, delta, area, gamma, B):
     # grad A0_j = -1/2 sum_k w_k Q_kj cos(th_k - th_j) + 1/2 w_j (x_j c_j + z_j s_j)
     wcq, wsq = _weighted_q(c, s, Qh, wh)
     h2 = h * h
-    grad_a0 = np.empty(n)
-    grad_d = np.empty(n)
+    grad_a0 = G[2]
+    grad_d = G[3]
     for j in range(n):
         grad_a0[j] = (-0.5 * h2 * (c[j] * wcq[j] + s[j] * wsq[j])
                       + 0.5 * h * wh[j] * (x[j] * c[j] + z[j] * s[j]))
         grad_d[j] = h * Qh[N, j] * (-xN * s[j] + zN * c[j]) / d
     bend = B * (2.0 / delta)
-    k_theta = np.empty(n)
-    grad = np.empty(n)
+    k_theta = G[4]
+    grad = G[5]
     for i in range(n):
         acc = 0.0
         for k in range(n):
             acc += K[i, k] * theta[k]
         k_theta[i] = acc
         grad[i] = bend * acc + gamma * (-kappa * grad_a0[i] + ct * grad_d[i])
-    return x, z, a0, d, tau, st, ct, lam, kappa, grad_a0, grad_d, k_theta, grad
+    return G, a0, d, tau, st, ct, lam, kappa
 
 
 @numba.njit(cache=True, error_model="numpy")
-def wet_hessian_into(H, theta, x, z, d, grad_a0, grad_d, Qh, wh, K, delta, gamma, B,
-                     cos_tau, kappa, l_aa, l_ad, l_dd):
-    """Write the Hessian of E_N in theta into ``H[:N+1, :N+1]`` (symmetric):
+def wet_hessian_into(H, theta, G, Qh, wh, K, d, delta, gamma, B, cos_tau, kappa, l_aa,
+                     l_ad, l_dd):
+    """Write the Hessian of E_N in theta into ``H[:N+1, :N+1]`` (symmetric; ``G`` as
+    returned by :func:`wet_geometry`):
     ``B (2/Delta) K + gamma (-kappa H_A0 + cos(tau) H_d + [gA gd] C2 [gA gd]^T)`` with
     ``C2 = [[L_AA, -L_Ad], [-L_Ad, L_dd]]`` (second derivatives of lambda)."""
     n = theta.size
     N = n - 1
+    x = G[0]
+    z = G[1]
+    grad_a0 = G[2]
+    grad_d = G[3]
     h = 0.5 * delta
     h2 = h * h
     c = np.cos(theta)
@@ -218,6 +225,8 @@ class WetState:
     grad: np.ndarray | None = None
     #: second derivatives of lambda, computed once when first asked for
     second: tuple | None = None
+    #: the rows x, z, grad_a0, grad_d, k_theta, grad in one array (:func:`wet_geometry`)
+    geometry: np.ndarray | None = None
 
 
 class WetElasticaProblem(Problem):
@@ -304,8 +313,12 @@ class WetElasticaProblem(Problem):
         """The parameters with the continued key at value ``p`` (``None``: as built)."""
         if p is None:
             return self.params
-        prm = dict(self.params)
-        prm.update(self._assign(prm, self.parameter, p))
+        prm = self.params.copy()
+        attr = PARAMETERS[self.parameter]
+        if attr == "x_end":
+            prm["center"] = prm["L"] - float(p)
+        else:
+            prm[attr] = float(p)
         return prm
 
     def interp_matrix(self, xi) -> np.ndarray:
@@ -371,10 +384,10 @@ class WetElasticaProblem(Problem):
         th = u[: self.N + 1]
         if not th.flags.c_contiguous:
             th = np.ascontiguousarray(th)
-        x, z, a0, d, tau, st, ct, lam, kappa, grad_a0, grad_d, kth, grad = wet_geometry(
+        G, a0, d, tau, st, ct, lam, kappa = wet_geometry(
             th, self.Qh, self.wh, self.K, prm["delta"], prm["area"], prm["gamma"], prm["B"])
-        st_ = WetState(th, x, z, a0, d, tau, st, ct, lam, kappa, grad_a0, grad_d, prm,
-                       kth, grad)
+        st_ = WetState(th, G[0], G[1], a0, d, tau, st, ct, lam, kappa, G[2], G[3], prm,
+                       G[4], G[5], geometry=G)
         self._cache_key, self._cache_val = key, st_
         return st_
 
@@ -420,8 +433,8 @@ class WetElasticaProblem(Problem):
         S = self.state(u, p)
         prm = S.params
         l_aa, l_ad, l_dd, _ta, _td = self._lambda_second(S)
-        wet_hessian_into(H, S.theta, S.x, S.z, S.d, S.grad_a0, S.grad_d, self.Qh, self.wh,
-                         self.K, prm["delta"], prm["gamma"], prm["B"], S.cos_tau, S.kappa,
+        wet_hessian_into(H, S.theta, S.geometry, self.Qh, self.wh, self.K, S.d,
+                         prm["delta"], prm["gamma"], prm["B"], S.cos_tau, S.kappa,
                          l_aa, l_ad, l_dd)
 
     def jacobian(self, u, p):
