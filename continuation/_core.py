@@ -93,7 +93,7 @@ class _Core:
         for it in range(max_iter + 1):
             u, p = x[:n], x[n]
             F = self.ev.F(u, p)
-            normF = float(np.max(np.abs(F))) if F.size else 0.0
+            normF = float(np.abs(F).max()) if F.size else 0.0
             if not math.isfinite(normF):
                 return _Corrected(x, it, None, False, "non-finite residual", normF)
             arc_ok = moore_penrose or abs(float(row @ x - c)) <= 1e-8 * (1.0 + abs(c))
@@ -134,7 +134,7 @@ class _Core:
             # newton_tol (large states, stiff operators), an update below
             # newton_tol relative to the state means Newton has converged as
             # far as floating point allows.
-            if float(np.max(np.abs(dx))) <= tol * (1.0 + float(np.max(np.abs(x)))):
+            if float(np.abs(dx).max()) <= tol * (1.0 + float(np.abs(x).max())):
                 return _Corrected(x, it + 1, fac, True, "", normF)
         raise AssertionError("unreachable")
 
@@ -221,7 +221,7 @@ def _fold_gradient(ev, u, p, v, w, q_family=None):
     ``d/du (w^T J(u) v) = d/dh J(u + h v)^T w`` at h = 0, so two Jacobian
     evaluations give the whole gradient.
     """
-    h = _FD2 * (1.0 + float(np.max(np.abs(u)))) / max(float(np.max(np.abs(v))), 1e-300)
+    h = _FD2 * (1.0 + float(np.abs(u).max())) / max(float(np.abs(v).max()), 1e-300)
     Jp = ev.J(u + h * v, p)
     Jm = ev.J(u - h * v, p)
     gu = -np.asarray(Jp.T @ w - Jm.T @ w).ravel() / (2.0 * h)
@@ -265,12 +265,12 @@ def _locate_fold(ev, u, p, v0, tol, max_iter=25, ftol=1e-10):
         u = u + dx[:n]
         p = p + dx[n]
         prec = abs(dx[n])
-        if np.max(np.abs(dx)) <= tol * (1.0 + max(np.max(np.abs(u)), abs(p))):
+        if np.abs(dx).max() <= tol * (1.0 + max(np.abs(u).max(), abs(p))):
             return u, p, v / np.linalg.norm(v), True, prec, it, ""
         # With finite-difference Jacobians the u-update stalls at rounding
         # noise while p has converged: accept once F is at the Newton
         # tolerance and p no longer moves.
-        if (it >= 3 and float(np.max(np.abs(F))) <= ftol
+        if (it >= 3 and float(np.abs(F).max()) <= ftol
                 and prec <= tol * (1.0 + abs(p))):
             return u, p, v / np.linalg.norm(v), True, prec, it, ""
     return u, p, c, False, prec, max_iter, (
@@ -534,12 +534,14 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
 _LOCATE_STALL_FACTOR = 30.0
 
 
-def _point_at(core, x_a, t_a, s_arc):
-    """Corrected point at arclength ``s_arc`` from ``x_a`` along ``t_a``."""
+def _point_at(core, x_a, t_a, s_arc, guess=None):
+    """Corrected point at arclength ``s_arc`` from ``x_a`` along ``t_a`` (Newton on the
+    hyperplane through ``x_a + s_arc t_a`` normal to ``t_a``, started from ``guess`` when
+    given, else from that predictor)."""
     row = core.wrow(t_a)
     xp = x_a + s_arc * t_a
-    r = core.correct(xp, row, float(row @ xp), tol=core.s.newton_tol,
-                     max_iter=2 * core.s.max_newton)
+    r = core.correct(xp if guess is None else guess, row, float(row @ xp),
+                     tol=core.s.newton_tol, max_iter=2 * core.s.max_newton)
     if not r.ok and r.normF <= _LOCATE_STALL_FACTOR * core.s.newton_tol:
         r.ok = True
     return r
@@ -552,17 +554,22 @@ def _bisect_on_arc(core, run, k, func, fa, fb):
     ta = run.t[k - 1]
     sb = core.dot(xb - xa, ta)
     cache = {}
+    # corrected points by arclength: each new one starts from the nearest (Brent's points
+    # close in on the root, so Newton starts ever closer to the solution it converges to)
+    near = {0.0: xa, sb: xb}
 
     def f(sv):
         if sv == 0.0:
             return fa
         if sv == sb:
             return fb
-        r = _point_at(core, xa, ta, sv)
+        s0 = min(near, key=lambda s: abs(s - sv))
+        r = _point_at(core, xa, ta, sv, guess=near[s0] + (sv - s0) * ta)
         if not r.ok:
             raise _LocateError(r.reason)
         val = func(r.x)
         cache[sv] = (r.x, val)
+        near[sv] = r.x
         return val
 
     xtol = core.s.locate_tol * max(1.0, abs(sb))

@@ -50,6 +50,10 @@ class FoldProblem(Problem):
         self.n = self.b.size
         self.name = name
         self._cache: OrderedDict = OrderedDict()
+        # the last bordered solve: the corrector asks for the residual and then the
+        # Jacobian at the same point (the borders change only in _on_accept)
+        self._last_key = None
+        self._last_sys = None
 
     def _ev(self, q) -> Evaluator:
         q = float(q)
@@ -65,17 +69,25 @@ class FoldProblem(Problem):
     def _split(self, U):
         return U[: self.n], float(U[self.n])
 
+    def _system(self, ev, U, q):
+        key = (U.tobytes(), float(q))
+        if key != self._last_key:
+            u, p = self._split(U)
+            self._last_sys = _fold_system(ev, u, p, self.b, self.c)
+            self._last_key = key
+        return self._last_sys
+
     def residual(self, U, q):
         u, p = self._split(U)
         ev = self._ev(q)
-        r = _fold_system(ev, u, p, self.b, self.c)
+        r = self._system(ev, U, q)
         g = r[0] if r is not None else math.nan
         return np.concatenate([ev.F(u, p), [g]])
 
     def jacobian(self, U, q):
         u, p = self._split(U)
         ev = self._ev(q)
-        r = _fold_system(ev, u, p, self.b, self.c)
+        r = self._system(ev, U, q)
         if r is None:
             return np.full((self.n + 1, self.n + 1), np.nan)
         _, v, w, J = r
@@ -102,6 +114,7 @@ class FoldProblem(Problem):
             nv, nw = np.linalg.norm(v), np.linalg.norm(w)
             if nv > 0 and nw > 0 and np.all(np.isfinite(v)) and np.all(np.isfinite(w)):
                 self.c, self.b = v / nv, w / nw
+                self._last_key = None
 
 
 def continue_fold(

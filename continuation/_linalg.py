@@ -181,20 +181,33 @@ def inertia_negative(H, C=None) -> int:
         K[:n, :n] = H
         K[n:, :n] = C
         K[:n, n:] = C.T
-    if not np.all(np.isfinite(K)):
+    if not np.isfinite(K.sum()):
         return -1
-    _, D, _ = sla.ldl(K, lower=True, check_finite=False)
-    # D is block diagonal with 1x1 and 2x2 blocks; each 2x2 block from
-    # Bunch-Kaufman pivoting has one negative and one positive eigenvalue,
-    # but counting eigenvalues of the blocks is simplest and exact.
-    neg = 0
-    i = 0
-    N = D.shape[0]
-    while i < N:
-        if i + 1 < N and D[i + 1, i] != 0.0:
-            neg += int(np.count_nonzero(np.linalg.eigvalsh(D[i : i + 2, i : i + 2]) < 0))
-            i += 2
-        else:
-            neg += int(D[i, i] < 0)
-            i += 1
-    return neg - m
+    return _negative_pivots(K) - m
+
+
+def _negative_pivots(K: np.ndarray) -> int:
+    """Negative eigenvalues of the symmetric ``K``: those of D in its Bunch-Kaufman
+    factorization ``K = L D L^T`` (LAPACK ``sytrf``, the factorization behind
+    ``scipy.linalg.ldl``), counted block by block; -1 if LAPACK fails."""
+    ldu, piv, info = _sytrf(K, lower=1)
+    if info < 0:
+        return -1
+    d = np.diagonal(ldu)
+    # a 2x2 block of D at rows (k, k+1) has ipiv[k] = ipiv[k+1] < 0 (lower storage)
+    two = piv < 0
+    neg = int(np.count_nonzero(d[~two] < 0.0))
+    ks = np.flatnonzero(two)
+    for k in ks[0::2]:
+        a, b, c = ldu[k, k], ldu[k + 1, k], ldu[k + 1, k + 1]
+        det = a * c - b * b
+        if det < 0.0:  # one negative, one positive eigenvalue
+            neg += 1
+        elif det > 0.0:  # both of the sign of the trace
+            neg += 2 if a + c < 0.0 else 0
+        else:  # one zero eigenvalue; the other is the trace
+            neg += int(a + c < 0.0)
+    return neg
+
+
+_sytrf = sla.get_lapack_funcs("sytrf", (np.empty((2, 2)),))

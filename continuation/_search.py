@@ -270,47 +270,51 @@ def deflated_newton(
     ev = Evaluator(problem)
     u = np.array(u0, dtype=float).ravel()
     idx = slice(None) if indices is None else indices
-    known = [np.asarray(k, dtype=float).ravel() for k in known]
+    # the known solutions' deflated components, one row each (the deflation factor and its
+    # gradient are then a few array operations, whatever their number)
+    kd = (np.array([np.asarray(k, dtype=float).ravel()[idx] for k in known])
+          if known else None)
+    if kd is not None and kd.size == 0:
+        kd = None
     r_first = None
     rn = math.inf
-    for it in range(max_iter + 1):
-        with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"):
+        for it in range(max_iter + 1):
             r = ev.F(u, p)
-        if not np.all(np.isfinite(r)):
-            return NewtonResult(u, False, it, math.inf, "non-finite residual")
-        rn = float(np.max(np.abs(r))) if r.size else 0.0
-        if rn <= tol:
-            return NewtonResult(u, True, it, rn)
-        if it == max_iter:
-            break
-        r_first = rn if r_first is None else r_first
-        if rn > 1e6 * r_first:
-            return NewtonResult(u, False, it, rn, "diverging (residual grew by 1e6)")
-        if it >= 12 and rn > 0.5 * r_first:
-            return NewtonResult(u, False, it, rn, "stagnating (no halving in 12 iterations)")
-        with np.errstate(all="ignore"):
+            rn = float(np.abs(r).max()) if r.size else 0.0
+            if not math.isfinite(rn):
+                return NewtonResult(u, False, it, math.inf, "non-finite residual")
+            if rn <= tol:
+                return NewtonResult(u, True, it, rn)
+            if it == max_iter:
+                break
+            r_first = rn if r_first is None else r_first
+            if rn > 1e6 * r_first:
+                return NewtonResult(u, False, it, rn, "diverging (residual grew by 1e6)")
+            if it >= 12 and rn > 0.5 * r_first:
+                return NewtonResult(u, False, it, rn,
+                                    "stagnating (no halving in 12 iterations)")
             fac = factorize(as_matrix(ev.J(u, p)))
-        if fac is None:
-            return NewtonResult(u, False, it, rn, "singular Jacobian")
-        du = fac.solve(-r)
-        if known:
-            gl = np.zeros_like(u)
-            for ui in known:
-                e = u[idx] - ui[idx]
-                r2 = float(e @ e)
-                if r2 == 0.0:
+            if fac is None:
+                return NewtonResult(u, False, it, rn, "singular Jacobian")
+            du = fac.solve(-r)
+            if kd is not None:
+                e = u[idx] - kd
+                r2 = np.einsum("ij,ij->i", e, e)
+                if not r2.all():
                     return NewtonResult(u, False, it, rn, "landed on a known solution")
-                rp = r2 ** (0.5 * power)
+                rp = r2 if power == 2.0 else r2 ** (0.5 * power)
                 # d/du ln(r^-power + shift) = -power r^(-power-2) e / (r^-power + shift)
-                gl[idx] += (-power / (rp * r2)) * e / (1.0 / rp + shift)
-            den = 1.0 - float(gl @ du)
-            if den == 0.0 or not math.isfinite(den):
-                return NewtonResult(u, False, it, rn, "deflation singular")
-            du = du / den
-        big = float(np.max(np.abs(du[idx]))) if du[idx].size else 0.0
-        if not math.isfinite(big):
-            return NewtonResult(u, False, it, rn, "non-finite Newton step")
-        u = u + (du if big <= max_step else du * (max_step / big))
+                # = -power e / (r^2 (1 + shift r^power)), summed over the known solutions
+                coef = -power / (r2 * (1.0 + shift * rp))
+                den = 1.0 - float(coef @ (e @ du[idx]))
+                if den == 0.0 or not math.isfinite(den):
+                    return NewtonResult(u, False, it, rn, "deflation singular")
+                du = du / den
+            big = float(np.abs(du[idx]).max()) if du[idx].size else 0.0
+            if not math.isfinite(big):
+                return NewtonResult(u, False, it, rn, "non-finite Newton step")
+            u = u + (du if big <= max_step else du * (max_step / big))
     return NewtonResult(u, False, max_iter, rn,
                         f"not converged in {max_iter} iterations (max|F|={rn:.2e} > {tol:.1e})")
 

@@ -47,24 +47,44 @@ def arc_points(x1, x2, tau, n=_N_ARC_SAMPLES):
     The arc bulges to the left of x1 -> x2 (the +q side) for tau > 0, with half-angle tau.
     Written without the radius so that a flat interface (tau -> 0) needs no special case.
     """
-    x1 = np.asarray(x1, float)
-    x2 = np.asarray(x2, float)
-    chord = x2 - x1
-    d = float(np.hypot(*chord))
-    mid = 0.5 * (x1 + x2)
+    x1x, x1z = float(x1[0]), float(x1[1])
+    x2x, x2z = float(x2[0]), float(x2[1])
+    cx, cz = x2x - x1x, x2z - x1z
+    d = math.hypot(cx, cz)
+    mx, mz = 0.5 * (x1x + x2x), 0.5 * (x1z + x2z)
+    out = np.empty((n, 2))
     if d == 0.0:
-        return np.repeat(mid[None], n, axis=0)
-    c = chord / d
-    nrm = np.array([-c[1], c[0]])
-    v = np.linspace(-1.0, 1.0, n)
+        out[:, 0] = mx
+        out[:, 1] = mz
+        return out
+    cx, cz = cx / d, cz / d
+    v = _unit_samples(n)
     st = math.sin(tau)
     if abs(tau) < 1e-8:
         along = v
-        across = 0.5 * tau * (1.0 - v * v)
+        across = (0.5 * tau) * (1.0 - v * v)
     else:
         along = np.sin(tau * v) / st
         across = (np.cos(tau * v) - math.cos(tau)) / st
-    return mid + 0.5 * d * (along[:, None] * c + across[:, None] * nrm)
+    hd = 0.5 * d
+    # mid + d/2 (along c + across nrm), nrm = (-c_z, c_x)
+    out[:, 0] = mx + hd * (along * cx - across * cz)
+    out[:, 1] = mz + hd * (along * cz + across * cx)
+    return out
+
+
+_UNIT_SAMPLES: dict = {}
+
+
+def _unit_samples(n: int) -> np.ndarray:
+    """``np.linspace(-1, 1, n)``, read-only and cached (arcs are drawn at every point of
+    every branch)."""
+    v = _UNIT_SAMPLES.get(n)
+    if v is None:
+        v = np.linspace(-1.0, 1.0, n)
+        v.setflags(write=False)
+        _UNIT_SAMPLES[n] = v
+    return v
 
 
 def turning_measure(x: np.ndarray) -> float:
@@ -123,11 +143,19 @@ def count_crossings(a, b, same, skip_a0, skip_a1):
     count = 0
     for i in range(max(skip_a0, 0), min(a.shape[0] - 1, skip_a1)):
         ax, az = a[i, 0], a[i, 1]
-        rx, rz = a[i + 1, 0] - ax, a[i + 1, 1] - az
+        ex, ez = a[i + 1, 0], a[i + 1, 1]
+        rx, rz = ex - ax, ez - az
+        x0, x1 = min(ax, ex), max(ax, ex)
+        z0, z1 = min(az, ez), max(az, ez)
         j0 = i + 2 if same else 0
         for j in range(j0, b.shape[0] - 1):
             bx, bz = b[j, 0], b[j, 1]
-            if segments_cross(ax, az, rx, rz, bx, bz, b[j + 1, 0] - bx, b[j + 1, 1] - bz):
+            cx, cz = b[j + 1, 0], b[j + 1, 1]
+            # segments with disjoint bounding boxes cannot cross: skip the exact test
+            if ((bx > x1 and cx > x1) or (bx < x0 and cx < x0)
+                    or (bz > z1 and cz > z1) or (bz < z0 and cz < z0)):
+                continue
+            if segments_cross(ax, az, rx, rz, bx, bz, cx - bx, cz - bz):
                 count += 1
     return count
 

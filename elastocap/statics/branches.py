@@ -378,7 +378,11 @@ def trace_branches(
     curves = []
     n_fold_starts = 0
     if fold_curve_seeds and parameter == "drop.wetted_length":
-        folds = [sp for br in res.branches for sp in br.folds if sp.located]
+        # located folds, not pitchfork tips (a turn in the step of a branch point, which
+        # _collect_special_points reports as the branch point): their curve in the area
+        # would be a curve of pitchforks
+        folds = [sp for br in res.branches for sp in br.folds
+                 if sp.located and sp.index not in {q.index for q in br.branch_points}]
         q0 = problem.get("drop.area")
         starts, curves = _fold_curve_starts(problem, _distinct(folds), "drop.area", q0,
                                             settings, (0.25 * q0, 4.0 * q0), (lo, hi))

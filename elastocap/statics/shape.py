@@ -50,21 +50,20 @@ def full_shape(problem, u, p=None, n_wet=_N_WET_SAMPLES):
     delta, L, center = prm["delta"], prm["L"], prm["center"]
     s1 = center - 0.5 * delta
     s2 = center + 0.5 * delta
-    xi = np.linspace(-1.0, 1.0, n_wet)
-    Mi = problem.interp_matrix(xi)
-    wet = np.column_stack([Mi @ S.x, Mi @ S.z])
-    t1 = np.array([math.cos(S.theta[0]), math.sin(S.theta[0])])
-    t2 = np.array([math.cos(S.theta[-1]), math.sin(S.theta[-1])])
-    parts = [wet]
-    s_parts = [s1 + 0.5 * delta * (xi + 1.0)]
-    if s1 > 0.0:
-        parts.insert(0, (wet[0] - s1 * t1)[None])
-        s_parts.insert(0, np.array([0.0]))
-    if s2 < L:
-        parts.append((wet[-1] + (L - s2) * t2)[None])
-        s_parts.append(np.array([L]))
-    rod = np.vstack(parts)
-    s = np.concatenate(s_parts)
+    head, tail = int(s1 > 0.0), int(s2 < L)
+    rod = np.empty((n_wet + head + tail, 2))
+    s = np.empty(n_wet + head + tail)
+    wet = rod[head: head + n_wet]
+    np.matmul(problem.uniform_interp_matrix(n_wet), np.column_stack([S.x, S.z]), out=wet)
+    s[head: head + n_wet] = np.linspace(s1, s2, n_wet)
+    if head:  # the straight dry arm [0, S1], tangent to the wet part at S1
+        rod[0, 0] = wet[0, 0] - s1 * math.cos(S.theta[0])
+        rod[0, 1] = wet[0, 1] - s1 * math.sin(S.theta[0])
+        s[0] = 0.0
+    if tail:  # ... and [S2, L]
+        rod[-1, 0] = wet[-1, 0] + (L - s2) * math.cos(S.theta[-1])
+        rod[-1, 1] = wet[-1, 1] + (L - s2) * math.sin(S.theta[-1])
+        s[-1] = L
     iface = arc_points(wet[0], wet[-1], S.tau)
     return {"rod": rod, "s": s, "interface": iface}
 

@@ -38,7 +38,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
+import numba
 import numpy as np
 
 from continuation import Problem
@@ -74,6 +76,133 @@ PARAMETERS = {
 }
 
 
+# ------------------------------------------------------------------------ compiled kernels
+# The search evaluates the residual and the Hessian some thousands of times per diagram on
+# matrices of size ~25: the cost is in the calls, not the arithmetic, so both are assembled
+# in one compiled loop each (error_model="numpy": a zero chord gives inf/nan, not an
+# exception; the callers diagnose non-finite values).
+@numba.njit(cache=True, error_model="numpy")
+def _weighted_q(c, s, Qh, wh):
+    """(sum_k wh_k c_k Qh_kj, sum_k wh_k s_k Qh_kj) for every j."""
+    n = c.size
+    wcq = np.zeros(n)
+    wsq = np.zeros(n)
+    for k in range(n):
+        a = wh[k] * c[k]
+        b = wh[k] * s[k]
+        for j in range(n):
+            wcq[j] += a * Qh[k, j]
+            wsq[j] += b * Qh[k, j]
+    return wcq, wsq
+
+
+@numba.njit(cache=True, error_model="numpy")
+def wet_geometry(theta, Qh, wh, K, delta, area, gamma, B):
+    """Positions, wet area, chord, cap, the gradients of A0 and d, and grad E_N for angles
+    ``theta``.
+
+    Returns ``(G, a0, d, tau, sin_tau, cos_tau, lam, kappa)`` with the rows of ``G`` (6,
+    N+1) ``x, z, grad_a0, grad_d, k_theta, grad`` (see :class:`WetState`; ``k_theta = K
+    theta``, ``grad = B (2/Delta) K theta + gamma (-kappa grad_a0 + cos(tau) grad_d)``; one
+    array, so that one object is boxed per call); the formulas are those of the module
+    docstring with ``Q = (Delta/2) Qh`` and ``w = (Delta/2) wh``.
+    """
+    n = theta.size
+    N = n - 1
+    h = 0.5 * delta
+    c = np.cos(theta)
+    s = np.sin(theta)
+    G = np.empty((6, n))
+    x = G[0]
+    z = G[1]
+    for i in range(n):
+        ax = 0.0
+        az = 0.0
+        for k in range(n):
+            ax += Qh[i, k] * c[k]
+            az += Qh[i, k] * s[k]
+        x[i] = h * ax
+        z[i] = h * az
+    a0 = 0.0
+    for i in range(n):
+        a0 += wh[i] * (x[i] * s[i] - z[i] * c[i])
+    a0 *= 0.5 * h
+    xN = x[N]
+    zN = z[N]
+    d = math.hypot(xN, zN)
+    tau, st, ct, lam, kappa = cap_geometry(area - a0, d)
+    # grad A0_j = -1/2 sum_k w_k Q_kj cos(th_k - th_j) + 1/2 w_j (x_j c_j + z_j s_j)
+    wcq, wsq = _weighted_q(c, s, Qh, wh)
+    h2 = h * h
+    grad_a0 = G[2]
+    grad_d = G[3]
+    for j in range(n):
+        grad_a0[j] = (-0.5 * h2 * (c[j] * wcq[j] + s[j] * wsq[j])
+                      + 0.5 * h * wh[j] * (x[j] * c[j] + z[j] * s[j]))
+        grad_d[j] = h * Qh[N, j] * (-xN * s[j] + zN * c[j]) / d
+    bend = B * (2.0 / delta)
+    k_theta = G[4]
+    grad = G[5]
+    for i in range(n):
+        acc = 0.0
+        for k in range(n):
+            acc += K[i, k] * theta[k]
+        k_theta[i] = acc
+        grad[i] = bend * acc + gamma * (-kappa * grad_a0[i] + ct * grad_d[i])
+    return G, a0, d, tau, st, ct, lam, kappa
+
+
+@numba.njit(cache=True, error_model="numpy")
+def wet_hessian_into(H, theta, G, Qh, wh, K, d, delta, gamma, B, cos_tau, kappa, l_aa,
+                     l_ad, l_dd):
+    """Write the Hessian of E_N in theta into ``H[:N+1, :N+1]`` (symmetric; ``G`` as
+    returned by :func:`wet_geometry`):
+    ``B (2/Delta) K + gamma (-kappa H_A0 + cos(tau) H_d + [gA gd] C2 [gA gd]^T)`` with
+    ``C2 = [[L_AA, -L_Ad], [-L_Ad, L_dd]]`` (second derivatives of lambda)."""
+    n = theta.size
+    N = n - 1
+    x = G[0]
+    z = G[1]
+    grad_a0 = G[2]
+    grad_d = G[3]
+    h = 0.5 * delta
+    h2 = h * h
+    c = np.cos(theta)
+    s = np.sin(theta)
+    bend = B * (2.0 / delta)
+    xN = x[N]
+    zN = z[N]
+    for i in range(n):
+        qi = Qh[N, i]
+        for j in range(i, n):
+            # H_A0 off the diagonal: 1/2 (w_i Q_ij - w_j Q_ji) sin(th_i - th_j)
+            sij = s[i] * c[j] - c[i] * s[j]
+            ha0 = 0.5 * h2 * (wh[i] * Qh[i, j] - wh[j] * Qh[j, i]) * sij
+            # H_d = (G^T G - grad_d grad_d^T) / d, G = Q_N (-sin, cos)
+            hd = (h2 * qi * Qh[N, j] * (s[i] * s[j] + c[i] * c[j])
+                  - grad_d[i] * grad_d[j]) / d
+            r2 = (l_aa * grad_a0[i] * grad_a0[j]
+                  - l_ad * (grad_a0[i] * grad_d[j] + grad_d[i] * grad_a0[j])
+                  + l_dd * grad_d[i] * grad_d[j])
+            v = bend * K[i, j] + gamma * (-kappa * ha0 + cos_tau * hd + r2)
+            H[i, j] = v
+            H[j, i] = v
+    wcq, wsq = _weighted_q(c, s, Qh, wh)
+    for i in range(n):
+        # the diagonal terms: -1/2 sum_k w_k Q_ki sin(th_k - th_i) + 1/2 w_i (z_i c_i - x_i s_i)
+        da0 = 0.5 * h2 * (s[i] * wcq[i] - c[i] * wsq[i]) + 0.5 * h * wh[i] * (
+            z[i] * c[i] - x[i] * s[i])
+        dd = -h * Qh[N, i] * (xN * c[i] + zN * s[i]) / d
+        H[i, i] += gamma * (-kappa * da0 + cos_tau * dd)
+
+
+@lru_cache(maxsize=64)
+def _uniform_interp(nodes: str, N: int, n: int) -> np.ndarray:
+    M = NODES[nodes][3](N, np.linspace(-1.0, 1.0, n))
+    M.setflags(write=False)
+    return M
+
+
 @dataclass
 class WetState:
     """Geometry of one discrete equilibrium (all arrays on the N+1 nodes of the wet part)."""
@@ -91,6 +220,13 @@ class WetState:
     grad_a0: np.ndarray
     grad_d: np.ndarray
     params: dict | None = None
+    #: K theta and grad E_N (from :func:`wet_geometry`)
+    k_theta: np.ndarray | None = None
+    grad: np.ndarray | None = None
+    #: second derivatives of lambda, computed once when first asked for
+    second: tuple | None = None
+    #: the rows x, z, grad_a0, grad_d, k_theta, grad in one array (:func:`wet_geometry`)
+    geometry: np.ndarray | None = None
 
 
 class WetElasticaProblem(Problem):
@@ -177,13 +313,22 @@ class WetElasticaProblem(Problem):
         """The parameters with the continued key at value ``p`` (``None``: as built)."""
         if p is None:
             return self.params
-        prm = dict(self.params)
-        prm.update(self._assign(prm, self.parameter, p))
+        prm = self.params.copy()
+        attr = PARAMETERS[self.parameter]
+        if attr == "x_end":
+            prm["center"] = prm["L"] - float(p)
+        else:
+            prm[attr] = float(p)
         return prm
 
     def interp_matrix(self, xi) -> np.ndarray:
         """Interpolation from the nodes to points ``xi`` of [-1, 1]."""
         return self._f_interp(self.N, xi)
+
+    def uniform_interp_matrix(self, n: int) -> np.ndarray:
+        """Interpolation from the nodes to ``n`` equispaced points of [-1, 1] (cached,
+        read-only: the drawn shape of every recorded point uses it)."""
+        return _uniform_interp(self.nodes, self.N, int(n))
 
     def get(self, key: str, p: float | None = None) -> float:
         """Value of a scene key (at continuation value ``p`` when given)."""
@@ -237,21 +382,12 @@ class WetElasticaProblem(Problem):
         if key == self._cache_key:
             return self._cache_val
         th = u[: self.N + 1]
-        h = 0.5 * prm["delta"]
-        c, s = np.cos(th), np.sin(th)
-        x = h * (self.Qh @ c)
-        z = h * (self.Qh @ s)
-        w = h * self.wh
-        a0 = 0.5 * float(w @ (x * s - z * c))
-        xN, zN = x[-1], z[-1]
-        d = math.hypot(xN, zN)
-        tau, st, ct, lam, kappa = cap_geometry(prm["area"] - a0, d)
-        # grad A0_j = -1/2 sum_k w_k Q_kj cos(th_k - th_j) + 1/2 w_j (x_j c_j + z_j s_j)
-        Q = h * self.Qh
-        wc, ws = w * c, w * s
-        grad_a0 = -0.5 * (c * (wc @ Q) + s * (ws @ Q)) + 0.5 * w * (x * c + z * s)
-        grad_d = Q[-1] * (-xN * s + zN * c) / d
-        st_ = WetState(th, x, z, a0, d, tau, st, ct, lam, kappa, grad_a0, grad_d, prm)
+        if not th.flags.c_contiguous:
+            th = np.ascontiguousarray(th)
+        G, a0, d, tau, st, ct, lam, kappa = wet_geometry(
+            th, self.Qh, self.wh, self.K, prm["delta"], prm["area"], prm["gamma"], prm["B"])
+        st_ = WetState(th, G[0], G[1], a0, d, tau, st, ct, lam, kappa, G[2], G[3], prm,
+                       G[4], G[5], geometry=G)
         self._cache_key, self._cache_val = key, st_
         return st_
 
@@ -266,65 +402,45 @@ class WetElasticaProblem(Problem):
         )
 
     def _grad(self, S):
-        prm = S.params
-        B, gam, delta = prm["B"], prm["gamma"], prm["delta"]
-        return B * (2.0 / delta) * (self.K @ S.theta) + gam * (
-            -S.kappa * S.grad_a0 + S.cos_tau * S.grad_d
-        )
+        return S.grad
 
     def _lambda_second(self, S):
         """Second derivatives of lambda(A1, d): (L_AA, L_Ad, L_dd)."""
-        a1 = S.params["area"] - S.a0
-        ta, td = cap_tau_derivatives(S.tau, S.sin_tau, S.cos_tau, a1, S.d)
-        l_aa = 2.0 * S.cos_tau * ta / S.d
-        l_ad = -S.sin_tau * ta
-        l_dd = -S.sin_tau * td
-        return l_aa, l_ad, l_dd, ta, td
+        if S.second is None:
+            a1 = S.params["area"] - S.a0
+            ta, td = cap_tau_derivatives(S.tau, S.sin_tau, S.cos_tau, a1, S.d)
+            l_aa = 2.0 * S.cos_tau * ta / S.d
+            l_ad = -S.sin_tau * ta
+            l_dd = -S.sin_tau * td
+            S.second = (l_aa, l_ad, l_dd, ta, td)
+        return S.second
 
     # -------------------------------------------------------------------- Problem API
     def residual(self, u, p):
         S = self.state(u, p)
         r = np.empty(self.n)
-        r[: self.N + 1] = self._grad(S) + u[-1]
+        np.add(S.grad, u[-1], out=r[: self.N + 1])
         r[-1] = u[0] + u[self.N]
         return r
 
     def hessian(self, u, p):
         """Hessian of E_N in theta, shape (N+1, N+1) (symmetric)."""
+        H = np.empty((self.N + 1, self.N + 1))
+        self._hessian_into(H, u, p)
+        return H
+
+    def _hessian_into(self, H, u, p):
         S = self.state(u, p)
-        B, gam, delta = S.params["B"], S.params["gamma"], S.params["delta"]
-        h = 0.5 * delta
-        th, x, z = S.theta, S.x, S.z
-        c, s = np.cos(th), np.sin(th)
-        Q = h * self.Qh
-        w = h * self.wh
-        # Hessian of A0 (symmetric): 1/2 w_i Q_ij sin(th_i - th_j) + transpose + diagonal
-        # sin(th_i - th_j) = s_i c_j - c_i s_j: two outer products instead of N^2 sines
-        M = 0.5 * (w[:, None] * Q) * (np.multiply.outer(s, c) - np.multiply.outer(c, s))
-        H_a0 = M + M.T
-        wc, ws = w * c, w * s
-        diag = 0.5 * (s * (wc @ Q) - c * (ws @ Q)) + 0.5 * w * (z * c - x * s)
-        # the k-sum term: -1/2 delta_ij sum_k w_k Q_kj sin(th_k - th_j)
-        H_a0.flat[:: H_a0.shape[0] + 1] += diag
-        # Hessian of d
-        xN, zN, d = x[-1], z[-1], S.d
-        gx = -Q[-1] * s
-        gz = Q[-1] * c
-        G = np.stack([gx, gz])
-        H_d = (G.T @ G - np.multiply.outer(S.grad_d, S.grad_d)) / d
-        H_d.flat[:: H_d.shape[0] + 1] += (-xN * Q[-1] * c - zN * Q[-1] * s) / d
+        prm = S.params
         l_aa, l_ad, l_dd, _ta, _td = self._lambda_second(S)
-        ga, gd = S.grad_a0, S.grad_d
-        # the rank-2 part [ga gd] [[l_aa, -l_ad], [-l_ad, l_dd]] [ga gd]^T in one product
-        V = np.stack([ga, gd])
-        C2 = np.array([[l_aa, -l_ad], [-l_ad, l_dd]])
-        H_cap = -S.kappa * H_a0 + S.cos_tau * H_d + V.T @ C2 @ V
-        return B * (2.0 / delta) * self.K + gam * H_cap
+        wet_hessian_into(H, S.theta, S.geometry, self.Qh, self.wh, self.K, S.d,
+                         prm["delta"], prm["gamma"], prm["B"], S.cos_tau, S.kappa,
+                         l_aa, l_ad, l_dd)
 
     def jacobian(self, u, p):
         n = self.N + 1
         J = np.zeros((self.n, self.n))
-        J[:n, :n] = self.hessian(u, p)
+        self._hessian_into(J, u, p)
         J[:n, n] = 1.0
         J[n, 0] = 1.0
         J[n, self.N] = 1.0
@@ -341,11 +457,10 @@ class WetElasticaProblem(Problem):
         B, gam, delta = S.params["B"], S.params["gamma"], S.params["delta"]
         key = PARAMETERS[self.parameter]
         out = np.zeros(self.n)
-        cap = -S.kappa * S.grad_a0 + S.cos_tau * S.grad_d
         if key == "B":
-            out[: self.N + 1] = (2.0 / delta) * (self.K @ S.theta)
+            out[: self.N + 1] = (2.0 / delta) * S.k_theta
         elif key == "gamma":
-            out[: self.N + 1] = cap
+            out[: self.N + 1] = -S.kappa * S.grad_a0 + S.cos_tau * S.grad_d
         elif key == "area":
             l_aa, l_ad, _l_dd, _ta, _td = self._lambda_second(S)
             # d/dA of (-kappa grad A0 + cos tau grad d) at fixed theta, dA1/dA = 1
@@ -357,12 +472,10 @@ class WetElasticaProblem(Problem):
             dd = S.d / delta
             dkappa = l_aa * da1 + l_ad * dd
             dcos = l_ad * da1 + l_dd * dd
-            bend = -B * (2.0 / delta**2) * (self.K @ S.theta)
-            out[: self.N + 1] = bend + gam * (
-                -dkappa * S.grad_a0
-                - S.kappa * (2.0 / delta) * S.grad_a0
-                + dcos * S.grad_d
-                + S.cos_tau * S.grad_d / delta
+            out[: self.N + 1] = (
+                (-B * (2.0 / delta**2)) * S.k_theta
+                + (gam * (-dkappa - S.kappa * (2.0 / delta))) * S.grad_a0
+                + (gam * (dcos + S.cos_tau / delta)) * S.grad_d
             )
         # rod.length, drop.center, drop.distance_from_end: the wet equilibrium does not move
         return out

@@ -30,8 +30,13 @@ def fold_curves():
                         fold_curve_seeds=False)
     folds = []
     for br in bs.branches:
+        # a turn in the step of a branch point (a pitchfork seen from its bifurcating
+        # branch) is no fold of the scene, whether or not its fold Newton happened to
+        # converge there: its "fold curve" would be a curve of pitchforks
+        bp_steps = {q.index for q in br.branch_points}
         for sp in br.folds:
-            if sp.located and not any(abs(sp.p - f.p) < 1e-8 for f in folds):
+            if (sp.located and sp.index not in bp_steps
+                    and not any(abs(sp.p - f.p) < 1e-8 for f in folds)):
                 folds.append(sp)
     base = bs.problem
 
