@@ -93,7 +93,8 @@ MAX_NEWTON = 30
 MAX_ROUNDS = 30
 
 #: Relative edge-length tolerance (as SHAKE's) and gap tolerance (relative to the shortest
-#: edge, with a round-off floor relative to the size of the coordinates).
+#: edge), each with a round-off floor ``TOL_FLOOR`` relative to the size of the coordinates
+#: (over the shortest edge for the edges).
 TOL_EDGE = 1e-14
 TOL_GAP = 1e-13
 TOL_FLOOR = 4e-16
@@ -381,7 +382,7 @@ def _rebuild(x, thickness, skin, ck):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _list_valid(xo, x, ck):
     """Whether every node of ``xo`` and ``x`` is within skin / 2 of the last rebuild; also
     returns the largest displacement ``|x - xo|`` of a node."""
@@ -703,7 +704,28 @@ def _redundant(pairs, npairs, p, u, u_prev):
     return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
+def _listed_nothing_and_valid(xo, x, ck):
+    """Whether nothing is listed, no force is left to clear, and the (empty) list stays valid
+    for this step: every node of ``xo`` and ``x`` within skin / 2 of the last rebuild (the
+    test of :func:`_list_valid`, stopped at the first node that moved further)."""
+    meta = ck.meta
+    if meta[_NPAIRS] != 0 or meta[_FORCES] != 0 or meta[_VALID] != 1:
+        return False
+    xref = ck.xref
+    half = 0.5 * ck.stat[_SKIN]
+    lim = half * half
+    for i in range(x.shape[0]):
+        ax = x[i, 0] - xref[i, 0]
+        az = x[i, 1] - xref[i, 1]
+        bx = xo[i, 0] - xref[i, 0]
+        bz = xo[i, 1] - xref[i, 1]
+        if ax * ax + az * az >= lim or bx * bx + bz * bz >= lim:
+            return False
+    return True
+
+
+@numba.njit(cache=True, inline="always")
 def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
     """Position stage: project ``x`` (edge lengths already satisfied, e.g. by SHAKE) onto
     the edge lengths and the non-penetration constraints linearised at ``xo``.
@@ -731,6 +753,18 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
         pairs, 2 too many contacts, 3 singular system, 4 Newton did not converge, 5 the
         set of contacts did not settle).
     """
+    # inlined into the stepper: a step with nothing listed (the usual contact-free step)
+    # costs one pass over the nodes and no call
+    if _listed_nothing_and_valid(xo, x, ck):
+        ck.meta[_NACT] = 0
+        ck.stat[_GMIN] = np.inf
+        return 0
+    return _project_positions(xo, x, w, edge_len, lam, thickness, ck)
+
+
+@numba.njit(cache=True)
+def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
+    """:func:`contact_positions` past its shortcut."""
     n = x.shape[0]
     m = n - 1
     h_min = edge_len.min()
@@ -805,6 +839,10 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
     for i in range(n):
         xscale = max(xscale, abs(x[i, 0]), abs(x[i, 1]))
     tol_g = TOL_GAP * h_min + TOL_FLOOR * xscale
+    # the edges' relative residual cannot go below the round-off of edge vectors taken
+    # from coordinates of size xscale (SHAKE's own floor; 8e-14 on fig3-strip's 200 edges
+    # of a 14.3 long strip): without the floor the Newton iteration would spin to its cap
+    tol_e = TOL_EDGE + TOL_FLOOR * xscale / h_min
     # the candidates: pairs within twice the deepest penetration of contact (the
     # projection moves the rod by about that); a pair left out that ends violated is
     # added and the projection repeated
@@ -851,10 +889,10 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
                 rc[k] = -g
                 r = abs(g) if ck.mu_pos[k] > 0.0 else -g
                 err_g = r if r > err_g else err_g
-            if err_e <= TOL_EDGE and err_g <= tol_g:
+            if err_e <= tol_e and err_g <= tol_g:
                 conv = True
                 break
-            if it == MAX_NEWTON or (it > 4 and err_e <= TOL_EDGE and err_g >= 0.5 * g_prev):
+            if it == MAX_NEWTON or (it > 4 and err_e <= tol_e and err_g >= 0.5 * g_prev):
                 break
             g_prev = err_g
             if not _bordered_solve(R, O, w, 2.0, phi, na, ci, cu, cn, rc, ck, dl, dm, True,
@@ -923,7 +961,7 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
     return 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates, equal_active,
                        ck):
     """Velocity stage: where the rod touches itself (gap within tolerance at ``x``), remove
@@ -937,16 +975,25 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
     the step on every node).  Returns the number of touching pairs, -1 on failure (the
     velocities are then left as they came).
     """
+    # inlined into the stepper: nothing listed, or no projection this step and every
+    # listed pair clear of contact, costs no call
+    if ck.meta[_NPAIRS] == 0:
+        return 0
+    if ck.meta[_NACT] == 0 and ck.stat[_GMIN] > TOUCH_SKIP * edge_len.min():
+        return 0
+    return _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
+                               equal_active, ck)
+
+
+@numba.njit(cache=True)
+def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
+                        equal_active, ck):
+    """:func:`contact_velocities` past its shortcuts."""
     n = x.shape[0]
     m = n - 1
     npairs = ck.meta[_NPAIRS]
     nact = ck.meta[_NACT]
-    if npairs == 0:
-        return 0
     h_min = edge_len.min()
-    if nact == 0 and ck.stat[_GMIN] > TOUCH_SKIP * h_min:
-        # no projection this step and every listed pair clear of contact: nothing touches
-        return 0
     K = ck.active.shape[0]
     xscale = 0.0
     for i in range(n):
@@ -1024,17 +1071,24 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
     for e in range(m):
         rates[e] = R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1])
     # the complementarity problem is solved iteratively: a few refinements from the
-    # remaining residual
-    for _refinement in range(VELOCITY_REFINEMENTS):
+    # remaining residual, until it is below tol_v (the edges' rows as rates of length
+    # change over the edge length, the contacts' as approach speeds, or any normal speed
+    # where a contact pushes or is an equality)
+    for refinement in range(VELOCITY_REFINEMENTS):
+        res = 0.0
         for e in range(m):
             r = R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1])
             rhs_e[e] = (rates[e] - r) if keep_rates else -r
+            res = max(res, abs(rhs_e[e]) / edge_len[e])
         for k in range(nc):
             i = ci[k, 0]
             j = ci[k, 1]
             u = cu[k]
             rc[k] = -(cn[k, 0] * (v[i, 0] - (1.0 - u) * v[j, 0] - u * v[j + 1, 0])
                       + cn[k, 1] * (v[i, 1] - (1.0 - u) * v[j, 1] - u * v[j + 1, 1]))
+            res = max(res, abs(rc[k]) if (bm[k] > 0.0 or eq[k] != 0) else rc[k])
+        if refinement > 0 and res <= tol_v:
+            break
         if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, True, bm,
                                eq, 0.1 * tol_v):
             ck.meta[_FAIL] = 3
