@@ -1,9 +1,11 @@
 """What self-contact costs, measured (CPU time: the machine is shared).
 
-1. Contact-free impact runs: this working tree against a git revision (default ``main``),
-   each in fresh processes alternated ``--repeat`` times, medians of the per-process
-   minima (the cases of ``dynamics_speed.py`` section 3b, plus a midpoint run): a run
-   without ``rod.thickness`` generates no contact code, so the ratio should be 1.
+1. Contact-free impact steps: this working tree against a revision before self-contact
+   existed (default ``8b8ded7``; or a checkout of one), CPU time per step of warm runs,
+   both methods, supp-fig5 (Delta = 2.5, 4) and fig3-strip (x = 2), in fresh processes
+   alternated ``--repeat`` times (2 runs each), medians and ratios: a run without
+   ``rod.thickness`` generates no contact code, so the ratio should be 1 and the
+   trajectories the same.
 2. The same impacts with ``rod.thickness`` set against without, in one process: supp-fig5
    (Delta = 2.5, 4) and fig3-strip (x = 2, 3).  Goal: < 1.5x.
 3. The witness: with ``rod.thickness`` set, does supp-fig5 at Delta >= 3.8 still show a
@@ -11,7 +13,7 @@
    ``rod_crossing_time`` / ``interface_crossing_time``) on the run's frames, and the
    smallest node-segment distance over the frames (``dynamics.contact.segment_distances``).
 
-Run: ``python benchmarks/contact_speed.py [--baseline REV] [--repeat K] [--only 1|2|3]``.
+Run: ``python benchmarks/contact_speed.py [--baseline REV|DIR] [--repeat K] [--only 1|2|3]``.
 The thicknesses: supp-fig5 ``0.05`` (l_ec units), fig3-strip ``0.02`` (l_eg units, a strip
 of ~70 um): choices of this benchmark, not the paper's (its model has no contact).
 """
