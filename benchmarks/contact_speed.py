@@ -1,9 +1,11 @@
 """What self-contact costs, measured (CPU time: the machine is shared).
 
-1. Contact-free impact runs: this working tree against a git revision (default ``main``),
-   each in fresh processes alternated ``--repeat`` times, medians of the per-process
-   minima (the cases of ``dynamics_speed.py`` section 3b, plus a midpoint run): a run
-   without ``rod.thickness`` generates no contact code, so the ratio should be 1.
+1. Contact-free impact steps: this working tree against a revision before self-contact
+   existed (default ``8b8ded7``; or a checkout of one), CPU time per step of warm runs,
+   both methods, supp-fig5 (Delta = 2.5, 4) and fig3-strip (x = 2), in fresh processes
+   alternated ``--repeat`` times (2 runs each), medians and ratios: a run without
+   ``rod.thickness`` generates no contact code, so the ratio should be 1 and the
+   trajectories the same.
 2. The same impacts with ``rod.thickness`` set against without, in one process: supp-fig5
    (Delta = 2.5, 4) and fig3-strip (x = 2, 3).  Goal: < 1.5x.
 3. The witness: with ``rod.thickness`` set, does supp-fig5 at Delta >= 3.8 still show a
@@ -11,7 +13,7 @@
    ``rod_crossing_time`` / ``interface_crossing_time``) on the run's frames, and the
    smallest node-segment distance over the frames (``dynamics.contact.segment_distances``).
 
-Run: ``python benchmarks/contact_speed.py [--baseline REV] [--repeat K] [--only 1|2|3]``.
+Run: ``python benchmarks/contact_speed.py [--baseline REV|DIR] [--repeat K] [--only 1|2|3]``.
 The thicknesses: supp-fig5 ``0.05`` (l_ec units), fig3-strip ``0.02`` (l_eg units, a strip
 of ~70 um): choices of this benchmark, not the paper's (its model has no contact).
 """
@@ -32,10 +34,36 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 
-from dynamics_speed import IMPACT_SNIPPET, _export_revision  # noqa: E402
+from dynamics_speed import _export_revision, alternate_processes  # noqa: E402
 
-FREE_CASES = (("supp-fig5", {}), ("supp-fig5", {"drop.wetted_length": 4.0}),
-              ("fig3-strip", {}), ("supp-fig5", {"numerics.integrator": "implicit"}))
+#: Contact-free impacts of section 1: both methods on supp-fig5 (Delta = 2.5, 4) and
+#: fig3-strip (x = 2).
+FREE_CASES = tuple((name, dict(ov, **{"numerics.integrator": method}))
+                   for name, ov in (("supp-fig5", {}), ("supp-fig5", {"drop.wetted_length": 4.0}),
+                                    ("fig3-strip", {"drop.distance_from_end": 2.0}))
+                   for method in ("rattle", "implicit"))
+
+#: One process of section 1: each case run once to compile / load, then ``inner`` timed
+#: runs, each printed (CPU time of the run, its steps, the engine's loop time).
+STEP_SNIPPET = """
+import json, sys, time
+from elastocap.impact import run_impact
+from elastocap.scene import load_scene
+import elastocap
+assert elastocap.__file__.startswith(sys.argv[1]), (elastocap.__file__, sys.argv[1])
+for name, ov in json.loads(sys.argv[2]):
+    scene = load_scene(name, ov)
+    run_impact(scene)
+    runs = []
+    for _ in range(int(sys.argv[3])):
+        c = time.thread_time()
+        r = run_impact(scene)
+        cpu = time.thread_time() - c
+        s = r.simulation
+        runs.append(dict(cpu=cpu, steps=r.steps, loop=s.stats["run_time"]))
+    print(json.dumps(dict(runs=runs, outcome=r.outcome, final_measure=r.final_measure,
+                          t_end=r.t_end)))
+"""
 
 THICK = {"supp-fig5": 0.05, "fig3-strip": 0.02}
 CONTACT_CASES = (("supp-fig5", {}), ("supp-fig5", {"drop.wetted_length": 4.0}),
@@ -46,34 +74,58 @@ def section(title):
     print(f"\n=== {title}")
 
 
+def _baseline_tree(rev):
+    """A persistent export of revision ``rev`` (its numba and stepper caches survive between
+    runs of this benchmark, so only the first run compiles it)."""
+    sha = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short=12", rev],
+                         capture_output=True, text=True, check=True).stdout.strip()
+    dest = os.path.join(tempfile.gettempdir(), f"elastocap-baseline-{sha}")
+    if not os.path.isdir(os.path.join(dest, "dynamics")):
+        os.makedirs(dest, exist_ok=True)
+        _export_revision(sha, dest)
+    return sha, dest
+
+
 def contact_free_against(baseline, repeat, inner=2):
-    section(f"1. contact-free impacts: {baseline} against the working tree (CPU s)")
+    """Section 1: CPU time per step of contact-free impacts, this working tree against
+    ``baseline`` (a tree before self-contact existed: ``8b8ded7``), side by side: ``repeat``
+    rounds of one fresh process per tree (order alternated), each timing ``inner`` warm runs
+    of every case; medians over the ``repeat * inner`` runs."""
+    if os.path.isdir(baseline):
+        tree = os.path.abspath(baseline)
+        sha = subprocess.run(["git", "-C", tree, "rev-parse", "--short=12", "HEAD"],
+                             capture_output=True, text=True, check=True).stdout.strip()
+    else:
+        sha, tree = _baseline_tree(baseline)
+    section(f"1. contact-free impact steps: {sha} against the working tree (CPU us per step, "
+            f"warm, medians of {repeat * inner} runs)")
     cases = json.dumps([list(c) for c in FREE_CASES])
-    with tempfile.TemporaryDirectory() as tmp:
-        _export_revision(baseline, tmp)
-        trees = {baseline: tmp, "working tree": ROOT}
-        res = {k: [] for k in trees}
-        for r in range(repeat):
-            for label in (trees if r % 2 == 0 else list(trees)[::-1]):
-                env = dict(os.environ, PYTHONPATH=trees[label])
-                if label == baseline:
-                    env["DYNAMICS_CACHE_DIR"] = os.path.join(tmp, "_stepper_cache")
-                out = subprocess.run([sys.executable, "-c", IMPACT_SNIPPET, trees[label],
-                                      cases, str(inner)], env=env, cwd=trees[label],
-                                     capture_output=True, text=True)
-                if out.returncode:
-                    print(out.stderr[-2000:])
-                    raise SystemExit(1)
-                res[label].append([json.loads(line) for line in out.stdout.splitlines()])
+    trees = {sha: tree, "tree": ROOT}
+    res = alternate_processes(trees, sha, STEP_SNIPPET, cases, inner, repeat)
+    print(f"{'impact':34s} {'method':8s} {'steps':>7s} {sha + ' us/step':>14s} "
+          f"{'tree us/step':>13s} {'ratio':>6s}  (engine loop, wall: {sha}, tree, ratio)  "
+          "same trajectory")
+    ratios = []
     for k, (name, ov) in enumerate(FREE_CASES):
-        label = name + "".join(f" {a}={b}" for a, b in ov.items())
-        rows = {t: [run[k] for run in res[t]] for t in trees}
-        med = {t: float(np.median([x["cpu"] for x in rows[t]])) for t in trees}
-        old, new = (rows[t][-1] for t in trees)
-        print(f"{label:40s} {baseline} {med[baseline]:.3f}  tree {med['working tree']:.3f}  "
-              f"ratio tree/{baseline} {med['working tree'] / med[baseline]:.3f}  "
-              f"({old['steps']} steps; same outcome {old['outcome'] == new['outcome']}, same "
-              f"final measure {old['final_measure'] == new['final_measure']})")
+        ov = dict(ov)
+        method = ov.pop("numerics.integrator")
+        label = name + "".join(f" {a.split('.')[-1]}={b}" for a, b in ov.items())
+        per = {t: [x["cpu"] / x["steps"] * 1e6 for run in res[t] for x in run[k]["runs"]]
+               for t in trees}
+        loop = {t: [x["loop"] / x["steps"] * 1e6 for run in res[t] for x in run[k]["runs"]]
+                for t in trees}
+        med = {t: float(np.median(per[t])) for t in trees}
+        medl = {t: float(np.median(loop[t])) for t in trees}
+        old, new = (res[t][-1][k] for t in trees)
+        same = (old["outcome"] == new["outcome"] and old["final_measure"] == new["final_measure"]
+                and old["t_end"] == new["t_end"]
+                and old["runs"][0]["steps"] == new["runs"][0]["steps"])
+        ratios.append(med["tree"] / med[sha])
+        print(f"{label:34s} {method:8s} {new['runs'][0]['steps']:7d} {med[sha]:14.3f} "
+              f"{med['tree']:13.3f} {ratios[-1]:6.3f}  ({medl[sha]:.3f}, {medl['tree']:.3f}, "
+              f"{medl['tree'] / medl[sha]:.3f})  {same}")
+    print(f"ratio tree/{sha}: median {np.median(ratios):.3f}, range {min(ratios):.3f} - "
+          f"{max(ratios):.3f}")
 
 
 def _timed(scene, reps):
@@ -136,7 +188,9 @@ def witness():
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--baseline", default="main")
+    ap.add_argument("--baseline", default="8b8ded7",
+                    help="git revision or a checkout of one (section 1; default: the last "
+                         "revision before self-contact)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--only", type=int, choices=(1, 2, 3))
     a = ap.parse_args()

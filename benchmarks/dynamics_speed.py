@@ -303,6 +303,29 @@ def bench_impacts(repeat=3, baseline=None):
               f"  {ra.wall_time_s / ra.steps * 1e6:.2f} us/step")
 
 
+def alternate_processes(trees, baseline, snippet, cases, inner, repeat):
+    """Run ``snippet`` (``python -c``; arguments: the tree, ``cases``, ``inner``) in a
+    fresh process per tree (``{label: folder}``), ``repeat`` rounds in alternated order;
+    returns ``{label: [one list per process of its output lines read as JSON]}``.  The
+    ``baseline`` tree keeps its generated steppers in its own folder, out of the user's
+    cache."""
+    import json
+
+    res = {k: [] for k in trees}
+    for r in range(repeat):
+        for label in (trees if r % 2 == 0 else list(trees)[::-1]):
+            env = dict(os.environ, PYTHONPATH=trees[label])
+            if label == baseline:
+                env["DYNAMICS_CACHE_DIR"] = os.path.join(trees[label], "_stepper_cache")
+            out = subprocess.run([sys.executable, "-c", snippet, trees[label], cases,
+                                  str(inner)], env=env, cwd=trees[label],
+                                 capture_output=True, text=True)
+            if out.returncode:
+                raise SystemExit(f"{label}: {out.stderr[-2000:]}")
+            res[label].append([json.loads(line) for line in out.stdout.splitlines()])
+    return res
+
+
 def _bench_impacts_against(repeat, baseline, inner=2):
     import json
 
@@ -311,17 +334,7 @@ def _bench_impacts_against(repeat, baseline, inner=2):
     with tempfile.TemporaryDirectory() as tmp:
         _export_revision(baseline, tmp)
         trees = {baseline: tmp, "working tree": here}
-        res = {k: [] for k in trees}
-        for r in range(repeat):
-            for label in (trees if r % 2 == 0 else list(trees)[::-1]):
-                env = dict(os.environ, PYTHONPATH=trees[label])
-                if label == baseline:
-                    # keep the revision's generated steppers out of the user's cache
-                    env["DYNAMICS_CACHE_DIR"] = os.path.join(tmp, "_stepper_cache")
-                out = subprocess.run([sys.executable, "-c", IMPACT_SNIPPET, trees[label], cases,
-                                      str(inner)], env=env, cwd=trees[label],
-                                     capture_output=True, text=True, check=True).stdout
-                res[label].append([json.loads(line) for line in out.splitlines()])
+        res = alternate_processes(trees, baseline, IMPACT_SNIPPET, cases, inner, repeat)
     for k, (name, ov) in enumerate(IMPACT_CASES):
         label = name + "".join(f" {a}={b}" for a, b in ov.items())
         rows = {t: [run[k] for run in res[t]] for t in trees}
@@ -348,8 +361,9 @@ def bench_python_loop(n=100, steps=2000):
     winv0 = np.repeat((1 / m)[:, None], 2, axis=1).copy()
     A, cw, lam = np.zeros((7, n + 1, 2)), new_work(n), np.zeros(n + 2)
     bw = np.zeros((BENDING_WORK_ROWS, n + 1))
-    energy, diag, rest = np.zeros(1), np.zeros(8), np.zeros(3)
-    args = (rod.edge_len, m, winv0, 1.0, A, cw, lam, bw, energy, diag, rest)
+    energy, diag, rest = np.zeros(1), np.zeros(10), np.zeros(3)
+    ck = dynamics.contact.new_contact_work(np.ones(1))  # a token: no self-contact
+    args = (rod.edge_len, m, winv0, 1.0, A, cw, lam, bw, energy, diag, rest, ck, ())
     mod.run(x, v, 0.0, dt, 1, *args)
 
     def per_step():

@@ -91,9 +91,10 @@ def render(template: str, refs, imports: str = "") -> str:
     ----------
     template : str
         Python source of the method's functions (a :class:`string.Template`): ``$pargs``
-        stands for the parameter arrays of all effects (``, p0, p1, ...``, in the order of
-        ``refs``), ``$fargs`` for those of the force effects.  The template calls the
-        generated dispatch functions below and reads the flags.
+        and ``$fargs`` stand for the effects' parameters, one argument ``, params``: the
+        tuple of every effect's parameter array, in the order of ``refs`` (one argument
+        whatever the number of effects, see below).  The template calls the generated
+        dispatch functions below and reads the flags.
     refs : sequence of (kind, module, name, stiffness, native)
         Per effect: its kind, where its kernel is imported from, the (module, name) of its
         optional stiffness hook (or None), and whether the method handles the effect
@@ -128,17 +129,15 @@ def render(template: str, refs, imports: str = "") -> str:
     """
     import string
 
-    kernel_imports, P, F = [], [], []
+    kernel_imports = []
     forces, damps, cons, stiff, ground, contact = [], [], [], [], [], []
     for j, (kind, mod, name, hook, native) in enumerate(refs):
-        p = f"p{j}"
-        P.append(p)
+        p = f"params[{j}]"
         if native:
             (contact if native == "contact" else ground).append(p)
             continue
         kernel_imports.append(f"from {mod} import {name} as _k{j}")
         if kind == "force":
-            F.append(p)
             forces.append(f"    energy[{len(forces) + 1}] = _k{j}(x, v, t, {p}, edge_len, "
                           "mass, F)")
             if hook is not None:
@@ -154,8 +153,10 @@ def render(template: str, refs, imports: str = "") -> str:
             damps.append(f"    _k{j}(x, v, t, {p}, edge_len, mass, h)")
         else:
             cons.append(f"    _k{j}(x, v, t, {p}, edge_len, winv, stage)")
-    pargs = "".join(", " + p for p in P)
-    fargs = "".join(", " + p for p in F)
+    # one argument, the tuple of all effects' parameter arrays, whatever the number of
+    # effects: a call with more than 30 arguments is compiled by CPython as a call with
+    # ``*args`` (CALL_FUNCTION_EX), which numba cannot inline
+    pargs = fargs = ", params"
     head = [
         "import numba",
         "import numpy as np",

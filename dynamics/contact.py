@@ -28,9 +28,9 @@ projection::
 ``(lam, mu)`` with the contact rows eliminated by a Schur complement (``_bordered_solve``:
 one tridiagonal factorisation, one solve per candidate contact, the contacts' dense
 capacitance matrix), whose complementarity problem is solved by projected Gauss-Seidel;
-the candidates are the listed pairs within twice the deepest penetration, and a pair
-left out that ends violated joins them.  The velocity stage is the same with the contact rows at the new
-positions: relative normal velocity ``>= 0`` where the rod touches (restitution 0,
+the candidates are the listed pairs within twice the deepest penetration, and a pair left
+out that ends violated joins them.  The velocity stage is the same with the contact rows at
+the new positions: relative normal velocity ``>= 0`` where the rod touches (restitution 0,
 frictionless), together with the edges' ``G v = 0`` (RATTLE) or with the edges' stretching
 rates left unchanged (midpoint); an M-orthogonal projection onto a convex cone, so it never
 adds kinetic energy.  The contact forces are pairwise and opposite (node against the two
@@ -55,6 +55,7 @@ Work arrays: :func:`new_contact_work`.
 
 from __future__ import annotations
 
+import collections
 import math
 
 import numba
@@ -65,6 +66,7 @@ __all__ = [
     "contact_failure",
     "contact_stats",
     "CONTACT_SKIN",
+    "ContactWork",
     "MAX_ACTIVE",
     "exclusion_length",
     "new_contact_work",
@@ -91,7 +93,8 @@ MAX_NEWTON = 30
 MAX_ROUNDS = 30
 
 #: Relative edge-length tolerance (as SHAKE's) and gap tolerance (relative to the shortest
-#: edge, with a round-off floor relative to the size of the coordinates).
+#: edge), each with a round-off floor ``TOL_FLOOR`` relative to the size of the coordinates
+#: (over the shortest edge for the edges).
 TOL_EDGE = 1e-14
 TOL_GAP = 1e-13
 TOL_FLOOR = 4e-16
@@ -147,7 +150,7 @@ _FAILURES = {1: "more candidate pairs than the list holds (PAIRS_PER_NODE per no
 
 def contact_failure(ck, t, step, dt, substeps):
     """The message of a step whose self-contact projection failed."""
-    code = int(ck[0][_FAIL])
+    code = int(ck.meta[_FAIL])
     return (f"self-contact projection did not converge at t = {t:g} (step {step}): "
             f"{_FAILURES.get(code, 'unknown failure')}, even with {substeps} substeps. A "
             f"smaller dt (now {dt:g}) moves the rod less per step; a thickness much larger "
@@ -167,7 +170,7 @@ def contact_stats(ck, velocity_failures):
     step (each pair counted once); ``self_contact_velocity_unsettled`` velocity stages whose
     active set did not settle (their last round was kept).
     """
-    meta, stat = ck[0], ck[1]
+    meta, stat = ck.meta, ck.stat
     return {"self_contact_steps": int(meta[_STEPS]),
             "self_contact_max_active": int(meta[_MAXACT]),
             "self_contact_rounds": int(meta[_ROUNDS]),
@@ -184,19 +187,39 @@ def exclusion_length(thickness):
     return 0.5 * math.pi * float(thickness)
 
 
-def new_contact_work(edge_len):
-    """The work tuple of the contact kernels for a rod with these rest edge lengths.
+#: The work arrays of the contact kernels (:func:`new_contact_work`), one named tuple that
+#: numba passes as one argument and whose fields it reads by name at compile time.
+ContactWork = collections.namedtuple("ContactWork", [
+    "meta",       # counters (int64, rows _NPAIRS ... _NVEL)
+    "stat",       # statistics (rows _GAPERR ... _GMIN)
+    "xref",       # (n, 2) positions at the last rebuild of the pair list
+    "s_arc",      # (n,) arc length of every node
+    "pairs",      # (P, 2) int64 listed pairs (node, segment)
+    "pair_geom",  # (P, 4) per listed pair: closest point u, normal (nx, nz), gap
+    "active",     # (K,) int64 the active pairs (indices into pairs)
+    "mu_pos",     # (K,) their position multipliers
+    "mu_vel",     # (K,) the velocity stage's multipliers
+    "Y",          # (K, m) one tridiagonal solve per contact (Schur complement)
+    "S",          # (K, K) the contacts' capacitance matrix
+    "vec",        # (13, max(m, K) + 2) vectors
+    "grid",       # (H + n,) int64 hashed grid: bucket heads, then next node
+    "cell",       # (n, 2) int64 grid cell of every node
+    "forces",     # (n, 2) the contact forces of the last step
+    "scratch",    # (3, n, 2) scratch node arrays
+    "piv",        # (K,) int64 pivots
+    "mark",       # (P,) int64 per-pair marks (-1 redundant, 0 free, 1 active)
+    "rows",       # (3, K, 2) int64 (node, segment) of the contact rows being solved
+    "flags",      # (4, K) int64 equality flags of those rows
+    "normals",    # (3, K, 2) their normals
+    "weights",    # (3, K) their weights u
+    "edges",      # (2, m, 2) edge vectors (current, old)
+])
 
-    ``(meta, stat, xref, s_arc, pairs, pf, act, am, bm, Y, S, vec, grid, cell, fc, scratch,
-    piv, mark, contact rows (int), flags, normals, weights, edges)``: counters, statistics, the positions at the last rebuild, the arc length
-    of every node, the listed pairs ``(node, segment)`` and per pair ``(u, nx, nz, g)``,
-    the active pairs with their position and velocity multipliers, the Schur work (``Y``
-    one tridiagonal solve per contact, ``S`` the capacitance matrix), vectors, the hashed
-    grid (bucket heads, next, cell of every node), the contact forces of the last step
-    (n, 2), scratch node arrays, pivots, per-pair marks, and the rows of the contacts being
-    solved (node and segment, normal, weight u; for the position stage, the touching pairs
-    and the active ones of the velocity stage) with the edge vectors.
-    """
+
+def new_contact_work(edge_len):
+    """The :data:`ContactWork` of the contact kernels for a rod with these rest edge
+    lengths: row 0 of ``rows``, ``flags``, ``normals``, ``weights`` holds the position
+    stage's contacts, row 1 the velocity stage's."""
     edge_len = np.asarray(edge_len, dtype=np.float64)
     m = edge_len.shape[0]
     n = m + 1
@@ -207,14 +230,15 @@ def new_contact_work(edge_len):
     s_arc = np.zeros(n)
     s_arc[1:] = np.cumsum(edge_len)
     P = PAIRS_PER_NODE * n
-    return (np.zeros(10, dtype=np.int64), np.zeros(5), np.zeros((n, 2)), s_arc,
-            np.zeros((P, 2), dtype=np.int64), np.zeros((P, 4)),
-            np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros((K, m)),
-            np.zeros((K, K)), np.zeros((13, max(m, K) + 2)), np.zeros(H + n, dtype=np.int64),
-            np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2)), np.zeros((3, n, 2)),
-            np.zeros(K, dtype=np.int64), np.zeros(P, dtype=np.int64),
-            np.zeros((3, K, 2), dtype=np.int64), np.zeros((4, K), dtype=np.int64),
-            np.zeros((3, K, 2)), np.zeros((3, K)), np.zeros((2, m, 2)))
+    return ContactWork(
+        np.zeros(10, dtype=np.int64), np.zeros(5), np.zeros((n, 2)), s_arc,
+        np.zeros((P, 2), dtype=np.int64), np.zeros((P, 4)),
+        np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros((K, m)),
+        np.zeros((K, K)), np.zeros((13, max(m, K) + 2)), np.zeros(H + n, dtype=np.int64),
+        np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2)), np.zeros((3, n, 2)),
+        np.zeros(K, dtype=np.int64), np.zeros(P, dtype=np.int64),
+        np.zeros((3, K, 2), dtype=np.int64), np.zeros((4, K), dtype=np.int64),
+        np.zeros((3, K, 2)), np.zeros((3, K)), np.zeros((2, m, 2)))
 
 
 # ----------------------------------------------------------------------------- geometry
@@ -281,12 +305,12 @@ def _rebuild(x, thickness, skin, ck):
     """List the (node, segment) pairs closer than ``thickness + skin`` at ``x`` (hashed
     grid of cell size ``h_max + 2 (thickness + skin)``, so a segment's box inflated by
     that reach covers at most 2 x 2 cells)."""
-    meta = ck[0]
-    s_arc = ck[3]
-    pairs = ck[4]
-    xref = ck[2]
-    grid = ck[12]
-    cell = ck[13]
+    meta = ck.meta
+    s_arc = ck.s_arc
+    pairs = ck.pairs
+    xref = ck.xref
+    grid = ck.grid
+    cell = ck.cell
     n = x.shape[0]
     lex = 0.5 * math.pi * thickness
     reach = thickness + skin
@@ -358,12 +382,12 @@ def _rebuild(x, thickness, skin, ck):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _list_valid(xo, x, ck):
     """Whether every node of ``xo`` and ``x`` is within skin / 2 of the last rebuild; also
     returns the largest displacement ``|x - xo|`` of a node."""
-    xref = ck[2]
-    half = 0.5 * ck[1][_SKIN]
+    xref = ck.xref
+    half = 0.5 * ck.stat[_SKIN]
     lim = half * half
     worst = 0.0
     step = 0.0
@@ -380,7 +404,7 @@ def _list_valid(xo, x, ck):
         worst = a if a > worst else worst
         worst = b if b > worst else worst
         step = cc if cc > step else step
-    return (worst < lim and ck[0][_VALID] == 1), math.sqrt(step)
+    return (worst < lim and ck.meta[_VALID] == 1), math.sqrt(step)
 
 
 # ----------------------------------------------------------------------------- linear algebra
@@ -433,10 +457,10 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     with both ends held are identities (``dl = 0``).  Returns False if a pivot vanished.
     """
     m = R.shape[0]
-    vec = ck[11]
-    Y = ck[9]
-    S = ck[10]
-    piv = ck[16]
+    vec = ck.vec
+    Y = ck.Y
+    S = ck.S
+    piv = ck.piv
     a = vec[0]
     b = vec[1]
     c = vec[2]
@@ -573,7 +597,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
         # to the tolerance, or a millionth of that residual: the Newton iteration around
         # this solve refines what is left
         tol = max(pgs_tol, 1e-6 * qmax)
-        for sweep in range(PGS_MAX_SWEEPS):
+        for _sweep in range(PGS_MAX_SWEEPS):
             ch = 0.0
             for k in range(na):
                 skk = S[k, k] + REGULARISATION * smax
@@ -641,6 +665,26 @@ def _gap(x, i, j, u, nx, nz, d):
             + nz * (x[i, 1] - (1.0 - u) * x[j, 1] - u * x[j + 1, 1]) - d)
 
 
+@numba.njit(cache=True, inline="always")
+def _listed_gap(x, ck, p, d):
+    """The linearised gap of listed pair ``p`` at ``x`` (its closest point and normal in
+    ``ck.pair_geom``)."""
+    pg = ck.pair_geom
+    return _gap(x, ck.pairs[p, 0], ck.pairs[p, 1], pg[p, 0], pg[p, 1], pg[p, 2], d)
+
+
+@numba.njit(cache=True, inline="always")
+def _add_impulse(fc, i, j, u, jx, jz):
+    """Impulse ``(jx, jz)`` on node ``i`` against segment ``j`` at ``u`` (weights
+    ``1, -(1 - u), -u``: the total is zero)."""
+    fc[i, 0] += jx
+    fc[i, 1] += jz
+    fc[j, 0] -= (1.0 - u) * jx
+    fc[j, 1] -= (1.0 - u) * jz
+    fc[j + 1, 0] -= u * jx
+    fc[j + 1, 1] -= u * jz
+
+
 # ----------------------------------------------------------------------------- stages
 
 
@@ -660,7 +704,28 @@ def _redundant(pairs, npairs, p, u, u_prev):
     return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
+def _listed_nothing_and_valid(xo, x, ck):
+    """Whether nothing is listed, no force is left to clear, and the (empty) list stays valid
+    for this step: every node of ``xo`` and ``x`` within skin / 2 of the last rebuild (the
+    test of :func:`_list_valid`, stopped at the first node that moved further)."""
+    meta = ck.meta
+    if meta[_NPAIRS] != 0 or meta[_FORCES] != 0 or meta[_VALID] != 1:
+        return False
+    xref = ck.xref
+    half = 0.5 * ck.stat[_SKIN]
+    lim = half * half
+    for i in range(x.shape[0]):
+        ax = x[i, 0] - xref[i, 0]
+        az = x[i, 1] - xref[i, 1]
+        bx = xo[i, 0] - xref[i, 0]
+        bz = xo[i, 1] - xref[i, 1]
+        if ax * ax + az * az >= lim or bx * bx + bz * bz >= lim:
+            return False
+    return True
+
+
+@numba.njit(cache=True, inline="always")
 def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
     """Position stage: project ``x`` (edge lengths already satisfied, e.g. by SHAKE) onto
     the edge lengths and the non-penetration constraints linearised at ``xo``.
@@ -678,7 +743,7 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
         The edge multipliers, padded as SHAKE's (entry e + 1 for edge e): the corrections
         of the edge multipliers are added to it.
     thickness : float
-    ck : tuple
+    ck : ContactWork
         :func:`new_contact_work`.
 
     Returns
@@ -688,33 +753,37 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
         pairs, 2 too many contacts, 3 singular system, 4 Newton did not converge, 5 the
         set of contacts did not settle).
     """
-    meta = ck[0]
-    stat = ck[1]
-    pairs = ck[4]
-    pf = ck[5]
-    act = ck[6]
-    am = ck[7]
-    fc = ck[14]
-    mark = ck[17]
+    # inlined into the stepper: a step with nothing listed (the usual contact-free step)
+    # costs one pass over the nodes and no call
+    if _listed_nothing_and_valid(xo, x, ck):
+        ck.meta[_NACT] = 0
+        ck.stat[_GMIN] = np.inf
+        return 0
+    return _project_positions(xo, x, w, edge_len, lam, thickness, ck)
+
+
+@numba.njit(cache=True)
+def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
+    """:func:`contact_positions` past its shortcut."""
     n = x.shape[0]
     m = n - 1
     h_min = edge_len.min()
-    if meta[_FORCES] != 0:
+    if ck.meta[_FORCES] != 0:
         for i in range(n):
-            fc[i, 0] = 0.0
-            fc[i, 1] = 0.0
-        meta[_FORCES] = 0
-    meta[_NACT] = 0
+            ck.forces[i, 0] = 0.0
+            ck.forces[i, 1] = 0.0
+        ck.meta[_FORCES] = 0
+    ck.meta[_NACT] = 0
     ok, step = _list_valid(xo, x, ck)
     if not ok:
         skin = CONTACT_SKIN * h_min
         if 2.5 * step > skin:
             skin = 2.5 * step
-        stat[_SKIN] = skin
+        ck.stat[_SKIN] = skin
         if not _rebuild(x, thickness, skin, ck):
             return -1
-    npairs = meta[_NPAIRS]
-    stat[_GMIN] = np.inf
+    npairs = ck.meta[_NPAIRS]
+    ck.stat[_GMIN] = np.inf
     if npairs == 0:
         return 0
     # narrow phase: normals at xo, gaps at x
@@ -722,8 +791,8 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
     gmin = np.inf
     u_prev = 0.0
     for p in range(npairs):
-        i = pairs[p, 0]
-        j = pairs[p, 1]
+        i = ck.pairs[p, 0]
+        j = ck.pairs[p, 1]
         u, qx, qz = _closest(xo, i, j)
         dd = math.sqrt(qx * qx + qz * qz)
         if dd > 0.0:
@@ -736,29 +805,29 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
             le = math.sqrt(ex * ex + ez * ez)
             nx = -ez / le
             nz = ex / le
-        pf[p, 0] = u
-        pf[p, 1] = nx
-        pf[p, 2] = nz
+        ck.pair_geom[p, 0] = u
+        ck.pair_geom[p, 1] = nx
+        ck.pair_geom[p, 2] = nz
         g = _gap(x, i, j, u, nx, nz, thickness)
-        pf[p, 3] = g
-        mark[p] = -1 if _redundant(pairs, npairs, p, u, u_prev) else 0
+        ck.pair_geom[p, 3] = g
+        ck.mark[p] = -1 if _redundant(ck.pairs, npairs, p, u, u_prev) else 0
         u_prev = u
-        if mark[p] == 0:
+        if ck.mark[p] == 0:
             worst = -g if -g > worst else worst
             gmin = g if g < gmin else gmin
-    stat[_GMIN] = gmin
+    ck.stat[_GMIN] = gmin
     if worst == 0.0:
         return 0
-    if worst > stat[_PENETRATION] * thickness:
-        stat[_PENETRATION] = worst / thickness
-    K = act.shape[0]
-    ci = ck[18][0]
-    cn = ck[20][0]
-    cu = ck[21][0]
-    eq = ck[19][0]
-    vec = ck[11]
-    R = ck[22][0]
-    O = ck[22][1]
+    if worst > ck.stat[_PENETRATION] * thickness:
+        ck.stat[_PENETRATION] = worst / thickness
+    K = ck.active.shape[0]
+    ci = ck.rows[0]
+    cn = ck.normals[0]
+    cu = ck.weights[0]
+    eq = ck.flags[0]
+    vec = ck.vec
+    R = ck.edges[0]
+    O = ck.edges[1]
     for e in range(m):
         O[e, 0] = xo[e + 1, 0] - xo[e, 0]
         O[e, 1] = xo[e + 1, 1] - xo[e, 1]
@@ -770,31 +839,35 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
     for i in range(n):
         xscale = max(xscale, abs(x[i, 0]), abs(x[i, 1]))
     tol_g = TOL_GAP * h_min + TOL_FLOOR * xscale
+    # the edges' relative residual cannot go below the round-off of edge vectors taken
+    # from coordinates of size xscale (SHAKE's own floor; 8e-14 on fig3-strip's 200 edges
+    # of a 14.3 long strip): without the floor the Newton iteration would spin to its cap
+    tol_e = TOL_EDGE + TOL_FLOOR * xscale / h_min
     # the candidates: pairs within twice the deepest penetration of contact (the
     # projection moves the rod by about that); a pair left out that ends violated is
     # added and the projection repeated
     reach = 2.0 * worst + tol_g
     na = 0
     for p in range(npairs):
-        if mark[p] == 0 and pf[p, 3] < reach:
+        if ck.mark[p] == 0 and ck.pair_geom[p, 3] < reach:
             if na >= K:
-                meta[_FAIL] = 2
+                ck.meta[_FAIL] = 2
                 return -1
-            act[na] = p
-            am[na] = 0.0
+            ck.active[na] = p
+            ck.mu_pos[na] = 0.0
             eq[na] = 0
-            mark[p] = 1
+            ck.mark[p] = 1
             na += 1
     settled = False
-    for rnd in range(MAX_ROUNDS):
-        meta[_ROUNDS] += 1
+    for _round in range(MAX_ROUNDS):
+        ck.meta[_ROUNDS] += 1
         for k in range(na):
-            p = act[k]
-            ci[k, 0] = pairs[p, 0]
-            ci[k, 1] = pairs[p, 1]
-            cu[k] = pf[p, 0]
-            cn[k, 0] = pf[p, 1]
-            cn[k, 1] = pf[p, 2]
+            p = ck.active[k]
+            ci[k, 0] = ck.pairs[p, 0]
+            ci[k, 1] = ck.pairs[p, 1]
+            cu[k] = ck.pair_geom[p, 0]
+            cn[k, 0] = ck.pair_geom[p, 1]
+            cn[k, 1] = ck.pair_geom[p, 2]
         conv = False
         err_e = np.inf
         err_g = np.inf
@@ -814,82 +887,81 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
             for k in range(na):
                 g = _gap(x, ci[k, 0], ci[k, 1], cu[k], cn[k, 0], cn[k, 1], thickness)
                 rc[k] = -g
-                r = abs(g) if am[k] > 0.0 else -g
+                r = abs(g) if ck.mu_pos[k] > 0.0 else -g
                 err_g = r if r > err_g else err_g
-            if err_e <= TOL_EDGE and err_g <= tol_g:
+            if err_e <= tol_e and err_g <= tol_g:
                 conv = True
                 break
-            if it == MAX_NEWTON or (it > 4 and err_e <= TOL_EDGE and err_g >= 0.5 * g_prev):
+            if it == MAX_NEWTON or (it > 4 and err_e <= tol_e and err_g >= 0.5 * g_prev):
                 break
             g_prev = err_g
             if not _bordered_solve(R, O, w, 2.0, phi, na, ci, cu, cn, rc, ck, dl, dm, True,
-                                   am, eq, 0.1 * tol_g):
-                meta[_FAIL] = 3
+                                   ck.mu_pos, eq, 0.1 * tol_g):
+                ck.meta[_FAIL] = 3
                 return -1
             _apply(x, w, O, dl, na, ci, cu, cn, dm, 1.0)
             for e in range(m):
                 lam[e + 1] += dl[e]
             for k in range(na):
-                am[k] += dm[k]
-                if am[k] < 0.0:
-                    am[k] = 0.0
+                ck.mu_pos[k] += dm[k]
+                if ck.mu_pos[k] < 0.0:
+                    ck.mu_pos[k] = 0.0
         if not conv:
             # redundant contacts (stacked layers) stall the complementarity residual above
             # round-off: accepted below TOL_REDUNDANT * thickness, anything else refused
             if not (err_e < 1e-12 and err_g < max(100.0 * tol_g, TOL_REDUNDANT * thickness)):
-                meta[_FAIL] = 4
+                ck.meta[_FAIL] = 4
                 return -1
         # a pair left out of the candidates that ends violated joins them
         changed = False
         for p in range(npairs):
-            if mark[p] == 0:
-                g = _gap(x, pairs[p, 0], pairs[p, 1], pf[p, 0], pf[p, 1], pf[p, 2], thickness)
+            if ck.mark[p] == 0:
+                g = _listed_gap(x, ck, p, thickness)
                 if g < -tol_g:
                     if na >= K:
-                        meta[_FAIL] = 2
+                        ck.meta[_FAIL] = 2
                         return -1
-                    act[na] = p
-                    am[na] = 0.0
+                    ck.active[na] = p
+                    ck.mu_pos[na] = 0.0
                     eq[na] = 0
-                    mark[p] = 1
+                    ck.mark[p] = 1
                     na += 1
                     changed = True
         if not changed:
             settled = True
             break
     if not settled:
-        meta[_FAIL] = 5
+        ck.meta[_FAIL] = 5
         return -1
     # keep the pushing contacts only (their marks tell the velocity stage)
     k2 = 0
     ge = 0.0
     for k in range(na):
-        p = act[k]
-        if am[k] > 0.0:
-            act[k2] = p
-            am[k2] = am[k]
+        p = ck.active[k]
+        if ck.mu_pos[k] > 0.0:
+            ck.active[k2] = p
+            ck.mu_pos[k2] = ck.mu_pos[k]
             k2 += 1
-            g = abs(_gap(x, pairs[p, 0], pairs[p, 1], pf[p, 0], pf[p, 1], pf[p, 2],
-                         thickness))
+            g = abs(_listed_gap(x, ck, p, thickness))
             ge = g if g > ge else ge
         else:
-            mark[p] = 0
+            ck.mark[p] = 0
     na = k2
     for p in range(npairs):
-        if mark[p] >= 0:
-            g = -_gap(x, pairs[p, 0], pairs[p, 1], pf[p, 0], pf[p, 1], pf[p, 2], thickness)
+        if ck.mark[p] >= 0:
+            g = -_listed_gap(x, ck, p, thickness)
             ge = g if g > ge else ge
-    meta[_NACT] = na
-    if na > meta[_MAXACT]:
-        meta[_MAXACT] = na
+    ck.meta[_NACT] = na
+    if na > ck.meta[_MAXACT]:
+        ck.meta[_MAXACT] = na
     if na > 0:
-        meta[_STEPS] += 1
-    if ge / thickness > stat[_GAPERR]:
-        stat[_GAPERR] = ge / thickness
+        ck.meta[_STEPS] += 1
+    if ge / thickness > ck.stat[_GAPERR]:
+        ck.stat[_GAPERR] = ge / thickness
     return 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates, equal_active,
                        ck):
     """Velocity stage: where the rod touches itself (gap within tolerance at ``x``), remove
@@ -899,29 +971,30 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
     ``equal_active``: the contacts the position stage of this step pushed end with zero
     relative normal velocity (equality; the midpoint method, whose step alone would bounce).
     ``pos_factor``: the momentum per unit of a position multiplier over ``dt`` (1 for
-    RATTLE, 2 for the midpoint rule), for the contact forces ``ck[14]`` (the mean force of
+    RATTLE, 2 for the midpoint rule), for the contact forces ``ck.forces`` (the mean force of
     the step on every node).  Returns the number of touching pairs, -1 on failure (the
     velocities are then left as they came).
     """
-    meta = ck[0]
-    stat = ck[1]
-    pairs = ck[4]
-    pf = ck[5]
-    act = ck[6]
-    am = ck[7]
-    fc = ck[14]
-    mark = ck[17]
+    # inlined into the stepper: nothing listed, or no projection this step and every
+    # listed pair clear of contact, costs no call
+    if ck.meta[_NPAIRS] == 0:
+        return 0
+    if ck.meta[_NACT] == 0 and ck.stat[_GMIN] > TOUCH_SKIP * edge_len.min():
+        return 0
+    return _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
+                               equal_active, ck)
+
+
+@numba.njit(cache=True)
+def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
+                        equal_active, ck):
+    """:func:`contact_velocities` past its shortcuts."""
     n = x.shape[0]
     m = n - 1
-    npairs = meta[_NPAIRS]
-    nact = meta[_NACT]
-    if npairs == 0:
-        return 0
+    npairs = ck.meta[_NPAIRS]
+    nact = ck.meta[_NACT]
     h_min = edge_len.min()
-    if nact == 0 and stat[_GMIN] > TOUCH_SKIP * h_min:
-        # no projection this step and every listed pair clear of contact: nothing touches
-        return 0
-    K = act.shape[0]
+    K = ck.active.shape[0]
     xscale = 0.0
     for i in range(n):
         xscale = max(xscale, abs(x[i, 0]), abs(x[i, 1]))
@@ -929,47 +1002,42 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
     inv_dt = 1.0 / dt
     # position impulses of this step into the forces
     for k in range(nact):
-        p = act[k]
-        i = pairs[p, 0]
-        j = pairs[p, 1]
-        u = pf[p, 0]
-        jx = pos_factor * am[k] * inv_dt * pf[p, 1]
-        jz = pos_factor * am[k] * inv_dt * pf[p, 2]
-        fc[i, 0] += jx
-        fc[i, 1] += jz
-        fc[j, 0] -= (1.0 - u) * jx
-        fc[j, 1] -= (1.0 - u) * jz
-        fc[j + 1, 0] -= u * jx
-        fc[j + 1, 1] -= u * jz
-        meta[_FORCES] = 1
+        p = ck.active[k]
+        i = ck.pairs[p, 0]
+        j = ck.pairs[p, 1]
+        u = ck.pair_geom[p, 0]
+        jx = pos_factor * ck.mu_pos[k] * inv_dt * ck.pair_geom[p, 1]
+        jz = pos_factor * ck.mu_pos[k] * inv_dt * ck.pair_geom[p, 2]
+        _add_impulse(ck.forces, i, j, u, jx, jz)
+        ck.meta[_FORCES] = 1
     # touching pairs: true closest point and normal at x
-    ci = ck[18][1]
-    cn = ck[20][1]
-    cu = ck[21][1]
-    eq = ck[19][1]
+    ci = ck.rows[1]
+    cn = ck.normals[1]
+    cu = ck.weights[1]
+    eq = ck.flags[1]
     nc = 0
     u_prev = 0.0
     for p in range(npairs):
-        i = pairs[p, 0]
-        j = pairs[p, 1]
+        i = ck.pairs[p, 0]
+        j = ck.pairs[p, 1]
         u, qx, qz = _closest(x, i, j)
-        red = _redundant(pairs, npairs, p, u, u_prev)
+        red = _redundant(ck.pairs, npairs, p, u, u_prev)
         u_prev = u
         dd = math.sqrt(qx * qx + qz * qz)
         if dd - thickness <= tol_touch and dd > 0.0 and not red:
             if nc >= K:
-                meta[_FAIL] = 2
+                ck.meta[_FAIL] = 2
                 return -1
             ci[nc, 0] = i
             ci[nc, 1] = j
             cu[nc] = u
             cn[nc, 0] = qx / dd
             cn[nc, 1] = qz / dd
-            eq[nc] = 1 if (equal_active and mark[p] == 1) else 0
+            eq[nc] = 1 if (equal_active and ck.mark[p] == 1) else 0
             nc += 1
     if nc == 0:
-        if meta[_FORCES] != 0:
-            _finish_forces(fc, inv_dt, stat)
+        if ck.meta[_FORCES] != 0:
+            _finish_forces(ck.forces, inv_dt, ck.stat)
         return 0
     vmax = 0.0
     for i in range(n):
@@ -984,11 +1052,11 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
         if vn < -tol_v or eq[k] == 1:
             approaching = True
     if not approaching:
-        if meta[_FORCES] != 0:
-            _finish_forces(fc, inv_dt, stat)
+        if ck.meta[_FORCES] != 0:
+            _finish_forces(ck.forces, inv_dt, ck.stat)
         return nc
-    vec = ck[11]
-    R = ck[22][0]
+    vec = ck.vec
+    R = ck.edges[0]
     for e in range(m):
         R[e, 0] = x[e + 1, 0] - x[e, 0]
         R[e, 1] = x[e + 1, 1] - x[e, 1]
@@ -996,27 +1064,34 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
     rc = vec[9]
     dl = vec[10]
     dm = vec[11]
-    bm = ck[8]
+    bm = ck.mu_vel
     for k in range(nc):
         bm[k] = 0.0
     rates = vec[12]
     for e in range(m):
         rates[e] = R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1])
     # the complementarity problem is solved iteratively: a few refinements from the
-    # remaining residual
-    for rf in range(VELOCITY_REFINEMENTS):
+    # remaining residual, until it is below tol_v (the edges' rows as rates of length
+    # change over the edge length, the contacts' as approach speeds, or any normal speed
+    # where a contact pushes or is an equality)
+    for refinement in range(VELOCITY_REFINEMENTS):
+        res = 0.0
         for e in range(m):
             r = R[e, 0] * (v[e + 1, 0] - v[e, 0]) + R[e, 1] * (v[e + 1, 1] - v[e, 1])
             rhs_e[e] = (rates[e] - r) if keep_rates else -r
+            res = max(res, abs(rhs_e[e]) / edge_len[e])
         for k in range(nc):
             i = ci[k, 0]
             j = ci[k, 1]
             u = cu[k]
             rc[k] = -(cn[k, 0] * (v[i, 0] - (1.0 - u) * v[j, 0] - u * v[j + 1, 0])
                       + cn[k, 1] * (v[i, 1] - (1.0 - u) * v[j, 1] - u * v[j + 1, 1]))
+            res = max(res, abs(rc[k]) if (bm[k] > 0.0 or eq[k] != 0) else rc[k])
+        if refinement > 0 and res <= tol_v:
+            break
         if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, True, bm,
                                eq, 0.1 * tol_v):
-            meta[_FAIL] = 3
+            ck.meta[_FAIL] = 3
             return -1
         _apply(v, w, R, dl, nc, ci, cu, cn, dm, 1.0)
         for k in range(nc):
@@ -1031,16 +1106,11 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
         u = cu[k]
         jx = dm[k] * cn[k, 0]
         jz = dm[k] * cn[k, 1]
-        fc[i, 0] += jx
-        fc[i, 1] += jz
-        fc[j, 0] -= (1.0 - u) * jx
-        fc[j, 1] -= (1.0 - u) * jz
-        fc[j + 1, 0] -= u * jx
-        fc[j + 1, 1] -= u * jz
-    if na > meta[_NVEL]:
-        meta[_NVEL] = na
-    meta[_FORCES] = 1
-    _finish_forces(fc, inv_dt, stat)
+        _add_impulse(ck.forces, i, j, u, jx, jz)
+    if na > ck.meta[_NVEL]:
+        ck.meta[_NVEL] = na
+    ck.meta[_FORCES] = 1
+    _finish_forces(ck.forces, inv_dt, ck.stat)
     return nc
 
 

@@ -1371,14 +1371,14 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
         # touches (the contacts pushed end at rest relative to each other, as held ground
         # nodes do); ground-held coordinates stay held
         th = _contact_thickness(t + dt$pargs)
-        wc = ck[15][2]
-        xs = ck[15][0]
+        wc = ck.scratch[2]
+        xs = ck.scratch[0]
         for i in range(n):
             wc[i, 0] = winv[i, 0]
             wc[i, 1] = 0.0 if (HAS_GROUND and held[i] != 0.0) else winv[i, 1]
             xs[i, 0] = x[i, 0]
             xs[i, 1] = x[i, 1]
-        cst = contact_positions(x0, x, wc, edge_len, ck[11][12], th, ck)
+        cst = contact_positions(x0, x, wc, edge_len, ck.vec[12], th, ck)
         if cst < 0:
             diag[11] = 1.0
             diag[8] = max_age
@@ -1615,7 +1615,6 @@ class Run:
         self.label = "+".join(e.name for e in effects) or "bending"
         self.mod = compile_stepper(effects)
         self.params = tuple(e.params for e in effects)
-        self.fparams = tuple(e.params for e in effects if e.kind == "force")
         self.force_names = [e.name for e in effects if e.kind == "force"]
         self.n_energies = 1 + len(self.force_names)
         self.dt_max = stable_dt(rod.edge_len, rod.mu, rod.B)
@@ -1683,7 +1682,7 @@ class Run:
     def _forces_at_x(self, t):
         F = self.ws[4]
         self.mod._forces(self.x, self.v, t, self.edge_len, self.mass, self.B, F,
-                         self.energy, *self.fparams)
+                         self.energy, self.params)
 
     def warm(self):
         """Compile (or load) the stepper; the state is restored afterwards."""
@@ -1696,7 +1695,7 @@ class Run:
         xs, vs, accs, hs = x.copy(), v.copy(), ws[5].copy(), ws[6].copy()
         ck_state = [a.copy() for a in self.ck]
         self.mod.run(x, v, self.t0, self.dt, 1, *self.work, np.zeros(3), self.opts, self.lr,
-                     self.ck, *self.params)
+                     self.ck, self.params)
         for a, b in zip(self.ck, ck_state, strict=True):
             a[...] = b
         x[:, :], v[:, :], ws[5][:, :], ws[6][:, :] = xs, vs, accs, hs
@@ -1711,7 +1710,7 @@ class Run:
             if stop > step:
                 status, done = self.mod.run(self.x, self.v, self.t0 + step * self.dt,
                                             self.dt, stop - step, *self.work, self.rest_arr,
-                                            self.opts, self.lr, self.ck, *self.params)
+                                            self.opts, self.lr, self.ck, self.params)
                 step += done
                 if status != 0:
                     break
@@ -1741,7 +1740,7 @@ class Run:
 
     def contact_forces(self):
         """Self-contact forces on the nodes, mean over the last step (None without it)."""
-        return self.ck[14].copy() if self.contact else None
+        return self.ck.forces.copy() if self.contact else None
 
     def failure(self, status, step, t_final):
         dt = self.dt

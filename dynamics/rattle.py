@@ -473,21 +473,21 @@ class Run:
     def warm(self):
         """Project the initial state, compile (or load) ``run`` and ``run_frames``."""
         w = self.work
-        self.mod.prepare(self.x, self.v, self.t0, w[0], w[2], w[4], w[5], w[6], *self.params)
-        self.mod.run(self.x, self.v, self.t0, self.dt, 0, *w, *self.params)
+        self.mod.prepare(self.x, self.v, self.t0, w[0], w[2], w[4], w[5], w[6], self.params)
+        self.mod.run(self.x, self.v, self.t0, self.dt, 0, *w, self.params)
         pos = np.empty((1, self.x.shape[0], 2))
         self.mod.run_frames(self.x, self.v, self.t0, self.dt, 0, np.zeros(0, np.int64),
                             np.zeros(0, np.bool_), pos, np.empty((1, 1 + self.n_energies)),
-                            np.empty(1, np.int64), 0, *w, *self.params)
+                            np.empty(1, np.int64), 0, *w, self.params)
 
     def advance(self, step, stops, record, pos, ens, rec_steps, nrec):
         return self.mod.run_frames(self.x, self.v, self.t0, self.dt, step, stops, record,
-                                   pos, ens, rec_steps, nrec, *self.work, *self.params)
+                                   pos, ens, rec_steps, nrec, *self.work, self.params)
 
     def after_event(self, step):
         # re-evaluate forces and energies with the new parameters
         self.mod.run(self.x, self.v, self.t0 + step * self.dt, self.dt, 0, *self.work,
-                     *self.params)
+                     self.params)
 
     def frame(self, pos, ens, rec_steps, nrec, step):
         pos[nrec] = self.x
@@ -498,7 +498,7 @@ class Run:
 
     def contact_forces(self):
         """Self-contact forces on the nodes, mean over the last step (None without it)."""
-        return self.ck[14].copy() if self.contact else None
+        return self.ck.forces.copy() if self.contact else None
 
     def failure(self, status, step, t_final):
         d, dt = self.diag, self.dt

@@ -5,6 +5,7 @@ code.  Both methods."""
 
 import numpy as np
 import pytest
+from dyn_ext_kernels import Pull
 
 from dynamics import (
     Damping,
@@ -17,7 +18,6 @@ from dynamics import (
     stable_dt,
 )
 from dynamics.contact import segment_distances
-from dyn_ext_kernels import Pull
 
 
 def _from_angles(theta, h, x0=(0.0, 0.0)):

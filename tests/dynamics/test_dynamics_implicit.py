@@ -142,7 +142,7 @@ def test_newton_matrix_is_the_jacobian_of_the_residual():
         d.ravel()[:] = z[idx]
         xm = rod.x + 0.5 * d
         F, e = np.zeros((n, 2)), np.zeros(1)
-        mod._forces(xm, d / dt, 0.0, el, rod.mass, 1.0, F, e)
+        mod._forces(xm, d / dt, 0.0, el, rod.mass, 1.0, F, e, ())
         rhs = np.zeros(N)
         kkt_residual(rod.x, rod.v, d, xm, F, z[midx].copy(), w, el, dt, rhs)
         return -rhs

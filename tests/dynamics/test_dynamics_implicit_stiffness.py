@@ -317,7 +317,7 @@ def test_newton_matrix_with_the_drop_is_the_jacobian_of_the_residual():
         d.ravel()[:] = z[idx]
         xm = rod.x + 0.5 * d
         F, e = np.zeros((n, 2)), np.zeros(2)
-        mod._forces(xm, d / dt, 0.0, el, rod.mass, 1.0, F, e, cap.params)
+        mod._forces(xm, d / dt, 0.0, el, rod.mass, 1.0, F, e, (cap.params,))
         rhs = np.zeros(N)
         kkt_residual(rod.x, rod.v, d, xm, F, z[midx].copy(), w, el, dt, rhs)
         return -rhs
@@ -353,7 +353,7 @@ def test_newton_matrix_with_the_drop_is_the_jacobian_of_the_residual():
     piv = np.zeros(N, dtype=np.int64)
     ab = np.zeros((N, 3 * KL + 1))
     info = mod._jacobian(rod.x, d0, xm, d0 / dt, 0.0, mu0, w, el, rod.mass, 1.0, dt, ab, piv,
-                         np.zeros(n), lr, True, cap.params)
+                         np.zeros(n), lr, True, (cap.params,))
     assert info == 0 and lr[7][0] == 5 and lr[7][1] == 0
     b = rng.standard_normal(N)
     y = b.copy()
