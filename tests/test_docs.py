@@ -56,7 +56,9 @@ def test_every_guide_page_is_in_the_toctree():
 
 
 def test_docs_speak_of_no_development_history():
-    banned = ("session", "issue 8", "last session", "earlier sessions", "withdrawn")
+    banned = ("session", "issue 8", "last session", "earlier sessions", "withdrawn",
+              "no longer", "not met", "the goal", "goals", "previously", "used to ",
+              "not computed yet", "old main", "today's main")
     for page in [*DOCS.glob("*.md"), *(DOCS / "guide").glob("*.md"), ROOT / "README.md"]:
         text = page.read_text().lower()
         for word in banned:
