@@ -82,21 +82,16 @@ def impact_estimate(scene: Scene) -> dict:
     that cannot be made at all, whatever ``--force``).
     """
     from elastocap.impact import (
-        ACCURACY_EDGES,
         FRAME_SPACING,
         MAX_FRAMES,
         edge_count,
         impact_settings,
     )
+    from elastocap.impact import edge_key as impact_edge_key
 
     num = scene.numerics
     n = edge_count(scene)
-    if num.n_edges:
-        edge_key, edge_val = "numerics.n_edges", num.n_edges
-    elif n > ACCURACY_EDGES[num.accuracy]:
-        edge_key, edge_val = "drop.wetted_length", scene.drop.wetted_length
-    else:
-        edge_key, edge_val = "numerics.accuracy", num.accuracy
+    edge_key, edge_val = impact_edge_key(scene) or ("numerics.accuracy", num.accuracy)
     frames = min(MAX_FRAMES, int(num.t_max / FRAME_SPACING) + 1)
     # stored trajectory: positions and velocities (frames x (n+1) x 2 doubles each), plus
     # about 64 doubles per edge of working arrays

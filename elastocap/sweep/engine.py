@@ -70,7 +70,15 @@ from elastocap.sweep.refine import (
 from elastocap.sweep.store import OUTCOMES, ResultStore, StoreError
 from elastocap.sweep.tasks import RESULT_KEYS, run_impact_task, runner_name
 
-__all__ = ["MAX_LEVELS", "Resolution", "Sweep", "SweepResult", "run_sweep", "sweep_resolutions"]
+__all__ = [
+    "MAX_LEVELS",
+    "Resolution",
+    "Sweep",
+    "SweepResult",
+    "check_sweep_resources",
+    "run_sweep",
+    "sweep_resolutions",
+]
 
 #: Scene keys every sweep point sets (a --set of one of them would be silently replaced).
 SWEPT_KEYS = ("drop.distance_from_end", "drop.wetted_length", "drop.center")
@@ -150,19 +158,102 @@ def sweep_resolutions(scene: Scene, points, levels: int = 0) -> list[Resolution]
     narrowest = min(p.wetted_length for p in points)
     n_wet = math.ceil(MIN_WET_EDGES * scene.rod.length / narrowest * (1.0 - 1e-12))
     n = num.n_edges or max(impact_settings(base)["n_edges"], n_wet)
-    st = impact_settings(base.with_overrides({"numerics.n_edges": n}))
+    with _edge_cause(scene, points, 0):
+        st = impact_settings(base.with_overrides({"numerics.n_edges": n}))
     out = [Resolution(0, int(n), float(st["dt"]), bool(num.dt), num.integrator)]
     for k in range(1, levels + 1):
         prev = out[-1]
         nk = math.ceil(LEVEL_EDGE_FACTOR * prev.n_edges)
-        auto = float(impact_settings(
-            base.with_overrides({"numerics.n_edges": nk, "numerics.dt": 0.0}))["dt"])
+        with _edge_cause(scene, points, k):
+            auto = float(impact_settings(
+                base.with_overrides({"numerics.n_edges": nk, "numerics.dt": 0.0}))["dt"])
         target = LEVEL_DT_FACTOR * prev.dt
         if auto <= target and not num.dt:
             out.append(Resolution(k, nk, auto, False, num.integrator))
         else:
             out.append(Resolution(k, nk, min(auto, target), True, num.integrator))
     return out
+
+
+def _sweep_edge_key(scene: Scene, points, level: int) -> tuple[str, object, str] | None:
+    """The input that sets the edges (and so the automatic dt) of a sweep's ``level``:
+    (key, value, note), or None when the scene's own keys do (its ``numerics.n_edges``, or
+    the preset's edges at a Delta that needs no more)."""
+    from elastocap.impact import ACCURACY_EDGES, MIN_WET_EDGES, edge_count
+
+    num = scene.numerics
+    option = "--delta/--we"
+    if level > 0:
+        return ("--converge", level, f"level {level} runs {LEVEL_EDGE_FACTOR:g}^{level} x the "
+                "sweep's edges (use fewer levels)")
+    if num.n_edges:
+        return None
+    narrowest = min(points, key=lambda p: p.wetted_length)
+    widest = max(points, key=lambda p: p.wetted_length)
+    d_min, d_max = narrowest.wetted_length, widest.wetted_length
+    n_wet = math.ceil(MIN_WET_EDGES * scene.rod.length / d_min * (1.0 - 1e-12))
+    n_preset = edge_count(scene.with_overrides(widest.overrides()))
+    if n_wet > n_preset:
+        return ("drop.wetted_length", d_min,
+                f"the sweep's smallest Delta ({option}) sets {n_wet} edges for every run "
+                f"({MIN_WET_EDGES} across it; use a larger one)")
+    if n_preset > ACCURACY_EDGES[num.accuracy]:
+        return ("drop.wetted_length", d_max,
+                f"the sweep's largest Delta ({option}) sets {n_preset} edges for every run "
+                "(use larger values)")
+    return None
+
+
+@contextlib.contextmanager
+def _edge_cause(scene: Scene, points, level: int):
+    """Re-raise a refusal of the sweep's own ``numerics.n_edges`` (or of the dt it sets for
+    a verification level) naming the sweep input that caused it (:func:`_sweep_edge_key`)."""
+    from elastocap.scene import SceneError
+
+    try:
+        yield
+    except SceneError as err:
+        own = {"numerics.n_edges": scene.numerics.n_edges, "numerics.dt": scene.numerics.dt}
+        cause = _sweep_edge_key(scene, points, level)
+        if cause is None or err.key not in own or (own[err.key] and level == 0):
+            raise
+        key, value, note = cause
+        raise SceneError(key, value, f"{note}; there, {err.allowed}") from None
+
+
+def check_sweep_resources(scene: Scene, points, resolutions, force: bool = False) -> dict:
+    """Refuse a sweep whose runs would exceed the resource limits of one impact
+    (:func:`elastocap.cli_args.check_resources`: memory, time steps), unless ``force``.
+
+    Checked at the sweep's resolution and the finest of the plan, at its smallest and its
+    largest Delta;
+    the refusal (:class:`~elastocap.scene.SceneError`) names the sweep input that makes the
+    runs large (the smallest Delta of ``--delta``/``--we``, ``--converge``), or the scene
+    key. Returns the estimate of the most expensive of the checked runs.
+    """
+    from elastocap.cli_args import impact_estimate
+    from elastocap.scene import SceneError
+
+    narrowest = min(points, key=lambda p: p.wetted_length)
+    widest = max(points, key=lambda p: p.wetted_length)
+    worst = None
+    # the sweep's own level first: a refusal there is not the verification's doing
+    for res, p in ((r, p) for r in {0: resolutions[0], 1: resolutions[-1]}.values()
+                   for p in (narrowest, widest)):
+        est = impact_estimate(scene.with_overrides({**p.overrides(), **res.overrides()}))
+        refusal = est["invalid"] or (None if force else est["refusal"])
+        if refusal is not None:
+            key, value, allowed = refusal
+            own = {"numerics.n_edges": scene.numerics.n_edges,
+                   "numerics.dt": scene.numerics.dt}
+            cause = _sweep_edge_key(scene, points, res.level)
+            if cause is not None and key in own and (res.level > 0 or not own[key]):
+                ckey, cvalue, note = cause
+                raise SceneError(ckey, cvalue, f"{note}; {allowed}")
+            raise SceneError(key, value, allowed)
+        if worst is None or est["memory_bytes"] > worst["memory_bytes"]:
+            worst = est
+    return worst
 
 
 @dataclass
@@ -887,6 +978,7 @@ def run_sweep(
     verify_levels: int = 0,
     verify_every_level: bool = False,
     overrides=(),
+    force: bool = False,
 ) -> SweepResult:
     """Sweep impacts over (x, We^1/2) or (x, Delta), refine and verify the boundary.
 
@@ -925,6 +1017,9 @@ def run_sweep(
         (``--converge K --every-level``). A bracket holds only if it holds at each.
     overrides : sequence of str
         The ``--set`` overrides the scene was made with (recorded in the report).
+    force : bool
+        Run even when a run is estimated above the resource limits of one impact
+        (:func:`check_sweep_resources`; refused otherwise, before anything is written).
 
     Returns
     -------
@@ -938,6 +1033,7 @@ def run_sweep(
     variable = "we_sqrt" if deltas is None else "wetted_length"
     points, skipped, levels = plan_sweep(scene, xs, we_sqrts=we_sqrts, deltas=deltas,
                                          verify_levels=verify_levels)
+    check_sweep_resources(scene, points, levels, force)
     if not isinstance(store, ResultStore):
         # a bad file, or one made at another resolution, is refused before any write
         ResultStore.check(store, store_resolution(levels))
