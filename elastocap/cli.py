@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from elastocap._version import __version__
-from elastocap.cli_args import check_resources, force_argument
+from elastocap.cli_args import check_resources, force_argument, run_suffix
 from elastocap.cli_args import load_scene_from_args as _load
 from elastocap.cli_args import scene_arguments as _scene_args
 from elastocap.io import OutputFolder
@@ -141,7 +141,11 @@ def _trace_or_fail(args, scene=None, progress=None, step=(0, 0)):
 
 def cmd_branches(args) -> int:
     scene = _load(args)
-    folder = _out_folder(args, f"branches-{scene.name}", "branches")
+    # the default folder tells apart runs of one scene in another --set, --param, --range
+    suffix = run_suffix(args, scene, extra={
+        "param": None if args.param == "drop.wetted_length" else args.param,
+        "range": list(args.range) if args.range else None})
+    folder = _out_folder(args, f"branches-{scene.name}{suffix}", "branches")
     progress = _progress(args, "branches")
     bs = _trace_or_fail(args, scene, progress, (0, 2))
     if bs is None:
@@ -278,10 +282,13 @@ def cmd_impact(args) -> int:
     if args.frames is not None and not 2 <= args.frames <= 200:
         raise UsageError(f"--frames: got {args.frames}; expected an integer from 2 to 200")
     check_resources(scene, "impact", args.force)
-    # the values that distinguish impacts of one scene: Delta and the drop's place x
+    # the values that distinguish impacts of one scene: Delta and the drop's place x, and
+    # a digest of every other value set by --set / --accuracy (none: no digest)
     stem = (
         f"impact-{scene.name}-delta{_stem_value(scene.drop.wetted_length)}"
         f"-x{_stem_value(scene.distance_from_end)}"
+        + run_suffix(args, scene, named=("drop.wetted_length", "drop.distance_from_end",
+                                         "drop.center", "drop.s1", "drop.s2"))
     )
     folder = _out_folder(args, f"impact-{scene.name}", stem)
     from elastocap.progress import heartbeat
@@ -642,11 +649,20 @@ def build_parser() -> argparse.ArgumentParser:
                 "(0.3, min(2.2, 1.95 x)) on the ground)",
             )
         if name in ("branches", "figures", "demo", "impact", "overlay"):
-            default_out = {"branches": "out/branches-SCENE", "figures": "out/figures",
+            default_out = {"branches": "out/branches-SCENE[-sDIGEST]", "figures": "out/figures",
                            "demo": "out/demo", "impact": "out/impact-SCENE",
                            "overlay": "out/overlay-SCENE"}[name]
+            names = {
+                "impact": "; files impact-SCENE-deltaD-xX[-sDIGEST].npz/.json/-frames.png",
+                "branches": "",
+            }.get(name)
+            digest = ("" if names is None else
+                      f"{names}; -sDIGEST (7 hex digits) appears when --set/--accuracy"
+                      + ("/--param/--range" if name == "branches" else "")
+                      + " change other values than the name's, the same for the same values")
             p.add_argument(
-                "--out", metavar="DIR", help=f"output directory (default: {default_out})"
+                "--out", metavar="DIR",
+                help=f"output directory (default: {default_out}){digest}"
             )
         if name in ("branches", "folds", "demo", "impact", "overlay"):
             force_argument(p)
