@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import numbers
 import os
 import socket
 import time
@@ -55,7 +56,7 @@ from pathlib import Path
 
 from elastocap._version import __version__
 from elastocap.scene import Scene
-from elastocap.sweep.executors import SweepExecutor, open_executor
+from elastocap.sweep.executors import SweepExecutor, check_workers, open_executor
 from elastocap.sweep.grid import SkippedPoint, SweepPoint, grid_points, length_unit, make_point
 from elastocap.sweep.progress import NoProgress, Progress
 from elastocap.sweep.refine import (
@@ -937,11 +938,11 @@ def _check_scene(scene: Scene) -> None:
 def check_verify_levels(levels, minimum: int = 0) -> int:
     """``levels`` as an integer ``minimum`` ... MAX_LEVELS (refused by message otherwise;
     0 means no verification)."""
-    if (isinstance(levels, bool) or not isinstance(levels, int)
+    if (isinstance(levels, bool) or not isinstance(levels, numbers.Integral)
             or not minimum <= levels <= MAX_LEVELS):
         raise ValueError(f"--converge: got {levels!r}; expected an integer from 1 to "
                          f"{MAX_LEVELS} (verification levels, each 1.5x the edges)")
-    return levels
+    return int(levels)
 
 
 def plan_sweep(scene: Scene, xs, *, we_sqrts=None, deltas=None, verify_levels: int = 0):
@@ -1026,6 +1027,15 @@ def run_sweep(
     SweepResult
     """
     t0 = time.perf_counter()
+    # numbers of any numeric type (numpy scalars and arrays too) as plain Python numbers:
+    # the result is plain data
+    xs = [_real(v, "--x") for v in xs]
+    we_sqrts = None if we_sqrts is None else [_real(v, "--we") for v in we_sqrts]
+    deltas = None if deltas is None else [_real(v, "--delta") for v in deltas]
+    refine_tol = None if refine_tol is None else _real(refine_tol, "--refine")
+    verify_levels = check_verify_levels(verify_levels)
+    if workers is not None:
+        workers = check_workers(workers)
     if criterion not in ("outcome", "companion_outcome"):
         raise ValueError(f"criterion: got {criterion!r}; expected 'outcome' or 'companion_outcome'")
     if refine_tol is not None and not (refine_tol > 0.0 and math.isfinite(refine_tol)):
@@ -1048,6 +1058,13 @@ def run_sweep(
             return _run(st, executor, *args)
     finally:
         progress.close()
+
+
+def _real(value, key: str) -> float:
+    """A real number of any numeric type (int, float, numpy scalar) as a Python float."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{key}: got {value!r}; expected a number")
+    return float(value)
 
 
 @contextlib.contextmanager
