@@ -527,16 +527,16 @@ def cmd_plot(args) -> int:
         kind, src = "branches", path
     elif path.is_file() and path.suffix == ".npz" and not path.name.startswith("branch_"):
         kind, src = "impact", path
-    elif path.is_file() and (path.suffix == ".sqlite" or path.name == "sweep.json"):
+    elif path.is_file() and path.name == "sweep.json":
+        kind, src = "sweep", path
+    elif path.is_file() and path.suffix == ".sqlite":
+        # the report its run wrote beside the store, else one rebuilt from the store alone
         src = path.parent / "sweep.json"
-        if not src.is_file():
-            raise UsageError(f"PATH: got {str(path)!r}; a sweep is redrawn from the sweep.json "
-                             "its run wrote beside the store; none found")
-        kind = "sweep"
+        kind, src = ("sweep", src) if src.is_file() else ("store", path)
     else:
         raise UsageError(
             f"PATH: got {str(path)!r}; expected a branches folder (with branches.json), an "
-            "impact .npz, or a sweep folder / store (with sweep.json)"
+            "impact .npz, a sweep folder (with sweep.json) or a sweep store (.sqlite)"
         )
     folder = OutputFolder(args.out or src.parent, f"plot-{kind}-{src.stem}")
     if kind == "branches":
@@ -555,6 +555,17 @@ def cmd_plot(args) -> int:
         png = folder.savefig(lambda p: frame_strip(res, scene, p, k=args.frames or 8),
                              f"{src.stem}-frames.png")
         info = {"kind": kind, "scene": scene.name, "outcome": res.outcome}
+    elif kind == "store":
+        from elastocap.sweep.engine import report_from_store
+        from elastocap.sweep.plot import plot_phase_diagram
+        from elastocap.sweep.store import StoreError
+
+        try:
+            report = report_from_store(src)
+        except StoreError as err:
+            raise UsageError(f"PATH: {err}") from None
+        png = folder.savefig(lambda p: plot_phase_diagram(report, p), "phase-diagram.png")
+        info = {"kind": "sweep", "scene": report.get("scene")}
     else:
         from elastocap.sweep.plot import plot_phase_diagram
 
@@ -567,7 +578,7 @@ def cmd_plot(args) -> int:
     if args.json:
         _print_json({**info, "files": [str(png)]})
     else:
-        print(f"redrew {kind} of {info['scene']}: wrote {png}")
+        print(f"redrew {info['kind']} of {info['scene']}: wrote {png}")
     return 0
 
 
@@ -715,7 +726,8 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("action", choices=("info", "clear"), help="what to do")
         if name == "plot":
             p.add_argument("path", metavar="PATH", help="a branches folder, an impact .npz, "
-                           "or a sweep folder or store")
+                           "a sweep folder, or a sweep store (.sqlite; without its "
+                           "sweep.json the diagram is rebuilt from the stored runs)")
             p.add_argument("--out", metavar="DIR",
                            help="where to write the figure (default: beside PATH)")
             p.add_argument("--frames", type=int, metavar="K",

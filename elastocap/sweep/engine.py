@@ -77,6 +77,7 @@ __all__ = [
     "Sweep",
     "SweepResult",
     "check_sweep_resources",
+    "report_from_store",
     "run_sweep",
     "sweep_resolutions",
 ]
@@ -1058,6 +1059,63 @@ def run_sweep(
             return _run(st, executor, *args)
     finally:
         progress.close()
+
+
+def report_from_store(store) -> dict:
+    """The report of a sweep (the shape of :meth:`SweepResult.to_dict`) rebuilt from its
+    store alone, without running anything: every stored run of the store's latest version,
+    the failures, and each x line classified from its runs at the sweep's own level
+    (:func:`~elastocap.sweep.refine.classify_line`: a bracket where the outcome changes once
+    from open to encapsulated). What a store does not record stays out: ``--set`` overrides,
+    the verification verdicts (``verified`` is False), the skipped points."""
+    from elastocap.sweep.refine import classify_line
+
+    with _opened(store) as st:
+        rows = st.rows()
+        failures = st.failures()
+        resolution = st.resolution()
+    if not rows:
+        raise ValueError(f"PATH: got {str(store)!r}; the store holds no run to draw")
+    version = rows[-1]["version"]
+    rows = [r for r in rows if r["version"] == version]
+    import json
+
+    from elastocap.scene import build_scene
+
+    scene = build_scene(json.loads(rows[0]["scene_json"]), rows[0]["scene_name"])
+    runs = []
+    for r in rows:
+        out = {"x": r["x_over_leg"], "x_scene": r["x"], "we_sqrt": r["we_sqrt"],
+               "wetted_length": r["wetted_length"], "stage": "stored", "cached": True}
+        out.update({k: v for k, v in r.items() if k not in _REPORT_SKIP})
+        runs.append(out)
+    level0 = [r for r in runs if not r.get("level")]
+    variable = ("we_sqrt" if level0 and all(r["we_sqrt"] is not None for r in level0)
+                else "wetted_length")
+    boundary = []
+    for x in sorted({r["x"] for r in level0}):
+        line = [r for r in level0 if r["x"] == x]
+        status, trans = classify_line([r[variable] for r in line],
+                                      [r["outcome"] for r in line])
+        b = {"x": x, "status": status, "low": None, "high": None, "level": 0,
+             "verified": False, "verification": None,
+             "transitions": [t.to_dict() for t in trans]}
+        if status == "bracketed":
+            (t,) = trans
+            b["low"], b["high"] = t.low, t.high
+            for key in ("we_sqrt", "wetted_length"):
+                lo = next(r[key] for r in line if r[variable] == t.low)
+                hi = next(r[key] for r in line if r[variable] == t.high)
+                b[f"{key}_low"], b[f"{key}_high"] = lo, hi
+        boundary.append(b)
+    unit = length_unit(scene)[1]
+    return {
+        "scene": rows[0]["scene_name"], "version": version, "variable": variable,
+        "x_unit": unit, "criterion": "outcome", "resolution": resolution,
+        "verify_levels": 0, "runs": runs, "boundary": boundary,
+        "failed": [dict(f) for f in failures if f.get("version") == version],
+        "store": str(store),
+    }
 
 
 def _real(value, key: str) -> float:

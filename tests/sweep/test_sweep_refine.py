@@ -301,3 +301,37 @@ def test_numpy_scalars_and_arrays_are_accepted_and_the_result_is_plain(tmp_path,
                       store=tmp_path / "s.sqlite", refine_tol=0.3, executor=pool,
                       run_fn=threshold_run)
     assert [(b.low, b.high) for b in plain.boundary] == [(b.low, b.high) for b in res.boundary]
+
+
+def _plotted(fig):
+    """What a phase diagram draws: each line's label and data (markers in any order)."""
+    ax = fig.axes[0]
+    return sorted((ln.get_label(), sorted(np.asarray(ln.get_xydata()).round(12).tolist()))
+                  for ln in ax.lines)
+
+
+def test_a_bare_store_redraws_the_same_diagram_without_running(tmp_path, pool, monkeypatch):
+    import elastocap.impact
+    import elastocap.sweep.tasks
+    from elastocap.cli import main
+    from elastocap.sweep.engine import report_from_store
+    from elastocap.sweep.plot import plot_phase_diagram
+
+    store = tmp_path / "s.sqlite"
+    res = run_sweep(STRIP, [1.0, 2.0, 3.0], we_sqrts=[0.5, 1.5, 2.5, 3.5], store=store,
+                    executor=pool, run_fn=threshold_run)
+
+    def forbidden(*a, **k):
+        raise AssertionError("an impact was run")
+
+    monkeypatch.setattr(elastocap.impact, "run_impact", forbidden)
+    monkeypatch.setattr(elastocap.sweep.tasks, "run_impact_task", forbidden)
+    rebuilt = report_from_store(store)
+    assert [(b["x"], b["status"], b["low"], b["high"]) for b in rebuilt["boundary"]] == [
+        (b.x, b.status, b.low, b.high) for b in res.boundary]
+    assert _plotted(plot_phase_diagram(rebuilt)) == _plotted(plot_phase_diagram(res))
+    # the command: no sweep.json beside the store, the figure drawn from the store alone
+    monkeypatch.chdir(tmp_path)
+    assert main(["plot", "s.sqlite", "--out", "re"]) == 0
+    assert (tmp_path / "re" / "phase-diagram.png").stat().st_size > 1000
+    assert main(["plot", "missing.sqlite"]) == 2
