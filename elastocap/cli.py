@@ -274,6 +274,19 @@ def _announce_compiles():
     return logger, handler
 
 
+class _CompilesAnnounced:
+    """``with _CompilesAnnounced():`` the announcements of a first compilation (the
+    "dynamics" logger) reach stderr for the duration of a command."""
+
+    def __enter__(self):
+        self.logger, self.handler = _announce_compiles()
+        return self
+
+    def __exit__(self, *exc):
+        self.logger.removeHandler(self.handler)
+        return False
+
+
 def cmd_impact(args) -> int:
     from dynamics.cache import CacheError
     from elastocap.impact import run_impact
@@ -362,7 +375,7 @@ def cmd_figures(args) -> int:
     progress = _progress(args, "figures")
     for k, name in enumerate(names):
         # figures that resume from their own earlier output write straight into the folder
-        with heartbeat(progress, k, len(names), f"drawing {name}"):
+        with heartbeat(progress, k, len(names), f"drawing {name}"), _CompilesAnnounced():
             paths = run_figures(folder.path, only=name, fast=args.fast)[name]
         # each figure owns its own files: --only one figure leaves the others alone
         written[name] = OutputFolder(folder.path, f"figure-{name}").adopt(paths)
@@ -396,7 +409,7 @@ def cmd_overlay(args) -> int:
 
     progress = _progress(args, "overlay")
     with heartbeat(progress, 0, 1, f"tracing the statics of {scene.name}, then {len(deltas)} "
-                   "impacts (compiles on first use)"):
+                   "impacts (compiles on first use)"), _CompilesAnnounced():
         res = run_overlay(scene, deltas, None)
     progress(1, 1, "done")
     progress.close()
@@ -445,7 +458,8 @@ def cmd_demo(args) -> int:
     from elastocap.progress import heartbeat
 
     progress = _progress(args, "demo")
-    with heartbeat(progress, 0, 4, "tracing the branches (compiles on first use)"):
+    with heartbeat(progress, 0, 4, "tracing the branches (compiles on first use)"), \
+            _CompilesAnnounced():
         bs = trace_branches(scene)
     _print_folds(bs) if not args.json else None
     png = folder.savefig(lambda path: plot_branch_set(bs, path), f"{scene.name}-branches.png")
@@ -456,7 +470,8 @@ def cmd_demo(args) -> int:
     for d in deltas:
         sc = scene.with_overrides({"drop.wetted_length": d})
         check_resources(sc, "impact", args.force)
-        with heartbeat(progress, 1 + len(runs), 4, f"impact at Δ = {d:g}"):
+        with heartbeat(progress, 1 + len(runs), 4, f"impact at Δ = {d:g}"), \
+                _CompilesAnnounced():
             r = run_impact(sc)
         reached = classify_final_state(bs, d, r.simulation.positions[-1])
         runs.append(
@@ -585,7 +600,8 @@ def cmd_plot(args) -> int:
 def cmd_sweep(args) -> int:
     from elastocap.sweep.cli import run
 
-    return run(args)
+    with _CompilesAnnounced():  # what compiles in this process (a dask cluster's, local ones)
+        return run(args)
 
 
 def cmd_cache(args) -> int:

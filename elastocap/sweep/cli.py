@@ -255,6 +255,10 @@ def run(args) -> int:
 
     scene, xs, we, delta, experiments, out, store, levels, export = _validate(args)
     progress = make_progress(args.progress)
+    if args.progress != "none" and args.scheduler is None and args.workers != 0:
+        # the local workers' compilation is not visible here: say that it happens
+        print("sweep: the local workers compile the impact stepper on first use (up to "
+              "about a minute each on a cold cache; cached after)", file=sys.stderr)
     result = run_sweep(
         scene,
         xs,
