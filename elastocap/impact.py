@@ -271,7 +271,9 @@ def impact_settings(scene: Scene) -> dict:
             f"{MIN_WET_EDGES} are needed (n_edges >= {n_min:.15g} for L = {L:.4g}), or 0 for the "
             "accuracy preset")
     h = L / n
-    dt_max = stable_dt(np.full(n, h), scene.rod.mass_per_length, scene.rod.bending_modulus)
+    # the bound depends on the shortest edge only: one edge of length h stands for the n
+    # equal ones (an array of n would allocate 8n bytes before a huge n can be refused)
+    dt_max = stable_dt(np.array([h]), scene.rod.mass_per_length, scene.rod.bending_modulus)
     if num.integrator == "implicit":
         # no stability bound: dt is chosen for accuracy on the slow modes
         omega1 = euler_bernoulli_omega(
@@ -321,7 +323,7 @@ def _check_dt(scene: Scene, dt: float, n: int) -> None:
         key, value, origin = "numerics.dt", num.dt, ""
     else:
         key, value = edge_key(scene) or ("rod.bending_modulus", scene.rod.bending_modulus)
-        origin = (f" (the automatic dt of {n} edges, from rod.bending_modulus and "
+        origin = (f" (the automatic dt of {n:.6g} edges, from rod.bending_modulus and "
                   "rod.mass_per_length)")
     if not (math.isfinite(dt) and dt > 0.0):
         raise SceneError(key, value, f"gives a time step dt = {dt!r}{origin}; a finite "

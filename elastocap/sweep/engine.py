@@ -197,11 +197,11 @@ def _sweep_edge_key(scene: Scene, points, level: int) -> tuple[str, object, str]
     n_preset = edge_count(scene.with_overrides(widest.overrides()))
     if n_wet > n_preset:
         return ("drop.wetted_length", d_min,
-                f"the sweep's smallest Delta ({option}) sets {n_wet} edges for every run "
+                f"the sweep's smallest Delta ({option}) sets {n_wet:.6g} edges for every run "
                 f"({MIN_WET_EDGES} across it; use a larger one)")
     if n_preset > ACCURACY_EDGES[num.accuracy]:
         return ("drop.wetted_length", d_max,
-                f"the sweep's largest Delta ({option}) sets {n_preset} edges for every run "
+                f"the sweep's largest Delta ({option}) sets {n_preset:.6g} edges for every run "
                 "(use larger values)")
     return None
 
