@@ -288,7 +288,7 @@ def impact_settings(scene: Scene) -> dict:
         raise SceneError(
             "numerics.dt",
             num.dt,
-            f"above the stability bound of bending dt_max = {dt_max:.4g} for {n} edges "
+            f"above the stability bound of bending dt_max = {dt_max:.4g} for {n:.6g} edges "
             f"(h = {h:.4g}); use dt <= {dt_max:.4g} or 0 for automatic",
         )
     _check_dt(scene, dt, n)

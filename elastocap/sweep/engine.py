@@ -952,6 +952,12 @@ def plan_sweep(scene: Scene, xs, *, we_sqrts=None, deltas=None, verify_levels: i
     _check_scene(scene)
     check_verify_levels(verify_levels)
     points, skipped = grid_points(scene, list(xs), we_sqrts=we_sqrts, deltas=deltas)
+    if not points and skipped:
+        s = skipped[0]
+        raise ValueError(
+            f"{'--delta' if deltas is not None else '--we'}: got no point to run; all "
+            f"{len(skipped)} points of the grid are skipped, e.g. x = {s.x_over_leg:.6g}, "
+            f"Delta = {s.wetted_length:.6g}: {s.reason}")
     return points, skipped, sweep_resolutions(scene, points, verify_levels)
 
 

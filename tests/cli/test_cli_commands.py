@@ -40,7 +40,7 @@ DOCUMENTED = [
     ["sweep", "fig3-strip", "--x", "2:3:2", "--delta", "1.0:1.5:2", "--set",
      "numerics.accuracy=draft", "--set", "numerics.t_max=5.0", "--workers", "1", "--progress",
      "none", "--out", "s", "--store", "s/store.sqlite", "--verify", "--export",
-     "s/runs.csv", "--json"],
+     "s/runs.csv", "--force", "--json"],
     ["sweep", "fig3-strip", "--x", "2:3:2", "--we", "0.5:1.5:2", "--refine", "1.0",
      "--accuracy", "draft", "--set", "numerics.t_max=5.0", "--workers", "1", "--progress",
      "none", "--experiments", "exp.csv", "--out", "s2"],
