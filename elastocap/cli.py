@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from elastocap._version import __version__
-from elastocap.cli_args import check_resources, force_argument
+from elastocap.cli_args import check_resources, force_argument, run_suffix
 from elastocap.cli_args import load_scene_from_args as _load
 from elastocap.cli_args import scene_arguments as _scene_args
 from elastocap.io import OutputFolder
@@ -141,7 +141,11 @@ def _trace_or_fail(args, scene=None, progress=None, step=(0, 0)):
 
 def cmd_branches(args) -> int:
     scene = _load(args)
-    folder = _out_folder(args, f"branches-{scene.name}", "branches")
+    # the default folder tells apart runs of one scene in another --set, --param, --range
+    suffix = run_suffix(args, scene, extra={
+        "param": None if args.param == "drop.wetted_length" else args.param,
+        "range": list(args.range) if args.range else None})
+    folder = _out_folder(args, f"branches-{scene.name}{suffix}", "branches")
     progress = _progress(args, "branches")
     bs = _trace_or_fail(args, scene, progress, (0, 2))
     if bs is None:
@@ -270,6 +274,19 @@ def _announce_compiles():
     return logger, handler
 
 
+class _CompilesAnnounced:
+    """``with _CompilesAnnounced():`` the announcements of a first compilation (the
+    "dynamics" logger) reach stderr for the duration of a command."""
+
+    def __enter__(self):
+        self.logger, self.handler = _announce_compiles()
+        return self
+
+    def __exit__(self, *exc):
+        self.logger.removeHandler(self.handler)
+        return False
+
+
 def cmd_impact(args) -> int:
     from dynamics.cache import CacheError
     from elastocap.impact import run_impact
@@ -278,10 +295,13 @@ def cmd_impact(args) -> int:
     if args.frames is not None and not 2 <= args.frames <= 200:
         raise UsageError(f"--frames: got {args.frames}; expected an integer from 2 to 200")
     check_resources(scene, "impact", args.force)
-    # the values that distinguish impacts of one scene: Delta and the drop's place x
+    # the values that distinguish impacts of one scene: Delta and the drop's place x, and
+    # a digest of every other value set by --set / --accuracy (none: no digest)
     stem = (
         f"impact-{scene.name}-delta{_stem_value(scene.drop.wetted_length)}"
         f"-x{_stem_value(scene.distance_from_end)}"
+        + run_suffix(args, scene, named=("drop.wetted_length", "drop.distance_from_end",
+                                         "drop.center", "drop.s1", "drop.s2"))
     )
     folder = _out_folder(args, f"impact-{scene.name}", stem)
     from elastocap.progress import heartbeat
@@ -355,7 +375,7 @@ def cmd_figures(args) -> int:
     progress = _progress(args, "figures")
     for k, name in enumerate(names):
         # figures that resume from their own earlier output write straight into the folder
-        with heartbeat(progress, k, len(names), f"drawing {name}"):
+        with heartbeat(progress, k, len(names), f"drawing {name}"), _CompilesAnnounced():
             paths = run_figures(folder.path, only=name, fast=args.fast)[name]
         # each figure owns its own files: --only one figure leaves the others alone
         written[name] = OutputFolder(folder.path, f"figure-{name}").adopt(paths)
@@ -389,7 +409,7 @@ def cmd_overlay(args) -> int:
 
     progress = _progress(args, "overlay")
     with heartbeat(progress, 0, 1, f"tracing the statics of {scene.name}, then {len(deltas)} "
-                   "impacts (compiles on first use)"):
+                   "impacts (compiles on first use)"), _CompilesAnnounced():
         res = run_overlay(scene, deltas, None)
     progress(1, 1, "done")
     progress.close()
@@ -438,7 +458,8 @@ def cmd_demo(args) -> int:
     from elastocap.progress import heartbeat
 
     progress = _progress(args, "demo")
-    with heartbeat(progress, 0, 4, "tracing the branches (compiles on first use)"):
+    with heartbeat(progress, 0, 4, "tracing the branches (compiles on first use)"), \
+            _CompilesAnnounced():
         bs = trace_branches(scene)
     _print_folds(bs) if not args.json else None
     png = folder.savefig(lambda path: plot_branch_set(bs, path), f"{scene.name}-branches.png")
@@ -449,7 +470,8 @@ def cmd_demo(args) -> int:
     for d in deltas:
         sc = scene.with_overrides({"drop.wetted_length": d})
         check_resources(sc, "impact", args.force)
-        with heartbeat(progress, 1 + len(runs), 4, f"impact at Δ = {d:g}"):
+        with heartbeat(progress, 1 + len(runs), 4, f"impact at Δ = {d:g}"), \
+                _CompilesAnnounced():
             r = run_impact(sc)
         reached = classify_final_state(bs, d, r.simulation.positions[-1])
         runs.append(
@@ -520,16 +542,16 @@ def cmd_plot(args) -> int:
         kind, src = "branches", path
     elif path.is_file() and path.suffix == ".npz" and not path.name.startswith("branch_"):
         kind, src = "impact", path
-    elif path.is_file() and (path.suffix == ".sqlite" or path.name == "sweep.json"):
+    elif path.is_file() and path.name == "sweep.json":
+        kind, src = "sweep", path
+    elif path.is_file() and path.suffix == ".sqlite":
+        # the report its run wrote beside the store, else one rebuilt from the store alone
         src = path.parent / "sweep.json"
-        if not src.is_file():
-            raise UsageError(f"PATH: got {str(path)!r}; a sweep is redrawn from the sweep.json "
-                             "its run wrote beside the store; none found")
-        kind = "sweep"
+        kind, src = ("sweep", src) if src.is_file() else ("store", path)
     else:
         raise UsageError(
             f"PATH: got {str(path)!r}; expected a branches folder (with branches.json), an "
-            "impact .npz, or a sweep folder / store (with sweep.json)"
+            "impact .npz, a sweep folder (with sweep.json) or a sweep store (.sqlite)"
         )
     folder = OutputFolder(args.out or src.parent, f"plot-{kind}-{src.stem}")
     if kind == "branches":
@@ -548,6 +570,17 @@ def cmd_plot(args) -> int:
         png = folder.savefig(lambda p: frame_strip(res, scene, p, k=args.frames or 8),
                              f"{src.stem}-frames.png")
         info = {"kind": kind, "scene": scene.name, "outcome": res.outcome}
+    elif kind == "store":
+        from elastocap.sweep.engine import report_from_store
+        from elastocap.sweep.plot import plot_phase_diagram
+        from elastocap.sweep.store import StoreError
+
+        try:
+            report = report_from_store(src)
+        except StoreError as err:
+            raise UsageError(f"PATH: {err}") from None
+        png = folder.savefig(lambda p: plot_phase_diagram(report, p), "phase-diagram.png")
+        info = {"kind": "sweep", "scene": report.get("scene")}
     else:
         from elastocap.sweep.plot import plot_phase_diagram
 
@@ -560,14 +593,15 @@ def cmd_plot(args) -> int:
     if args.json:
         _print_json({**info, "files": [str(png)]})
     else:
-        print(f"redrew {kind} of {info['scene']}: wrote {png}")
+        print(f"redrew {info['kind']} of {info['scene']}: wrote {png}")
     return 0
 
 
 def cmd_sweep(args) -> int:
     from elastocap.sweep.cli import run
 
-    return run(args)
+    with _CompilesAnnounced():  # what compiles in this process (a dask cluster's, local ones)
+        return run(args)
 
 
 def cmd_cache(args) -> int:
@@ -642,11 +676,20 @@ def build_parser() -> argparse.ArgumentParser:
                 "(0.3, min(2.2, 1.95 x)) on the ground)",
             )
         if name in ("branches", "figures", "demo", "impact", "overlay"):
-            default_out = {"branches": "out/branches-SCENE", "figures": "out/figures",
+            default_out = {"branches": "out/branches-SCENE[-sDIGEST]", "figures": "out/figures",
                            "demo": "out/demo", "impact": "out/impact-SCENE",
                            "overlay": "out/overlay-SCENE"}[name]
+            names = {
+                "impact": "; files impact-SCENE-deltaD-xX[-sDIGEST].npz/.json/-frames.png",
+                "branches": "",
+            }.get(name)
+            digest = ("" if names is None else
+                      f"{names}; -sDIGEST (7 hex digits) appears when --set/--accuracy"
+                      + ("/--param/--range" if name == "branches" else "")
+                      + " change other values than the name's, the same for the same values")
             p.add_argument(
-                "--out", metavar="DIR", help=f"output directory (default: {default_out})"
+                "--out", metavar="DIR",
+                help=f"output directory (default: {default_out}){digest}"
             )
         if name in ("branches", "folds", "demo", "impact", "overlay"):
             force_argument(p)
@@ -699,7 +742,8 @@ def build_parser() -> argparse.ArgumentParser:
             p.add_argument("action", choices=("info", "clear"), help="what to do")
         if name == "plot":
             p.add_argument("path", metavar="PATH", help="a branches folder, an impact .npz, "
-                           "or a sweep folder or store")
+                           "a sweep folder, or a sweep store (.sqlite; without its "
+                           "sweep.json the diagram is rebuilt from the stored runs)")
             p.add_argument("--out", metavar="DIR",
                            help="where to write the figure (default: beside PATH)")
             p.add_argument("--frames", type=int, metavar="K",

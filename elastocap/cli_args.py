@@ -14,6 +14,7 @@ __all__ = [
     "force_argument",
     "impact_estimate",
     "load_scene_from_args",
+    "run_suffix",
     "scene_arguments",
     "statics_estimate",
 ]
@@ -46,6 +47,44 @@ def load_scene_from_args(args) -> Scene:
     if getattr(args, "accuracy", None):
         over.append(f"numerics.accuracy={args.accuracy}")
     return load_scene(args.scene, over)
+
+
+def _flat(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+#: Hex digits of the digest in a run's file or folder name (``-s`` + these).
+SUFFIX_DIGITS = 7
+
+
+def run_suffix(args, scene: Scene, named=(), extra=None) -> str:
+    """The part of an output name that tells apart runs of one scene which differ in values
+    the name does not already carry: ``""`` when the scene's validated values equal the
+    named scene's (``args.scene`` without ``--set``/``--accuracy``) outside the ``named``
+    keys and ``extra`` is empty; else ``"-s"`` + the first SUFFIX_DIGITS hex digits of the
+    SHA-256 of the differing values (``canonical`` scene values, so ``0.1``, ``0.10`` and
+    ``1e-1`` name the same run) and of ``extra`` (other options that change the result,
+    e.g. ``--param``, ``--range``). The same command gives the same name (its re-run
+    replaces its own outputs); runs that differ never share one."""
+    import hashlib
+    import json
+
+    base = _flat(load_scene(args.scene).canonical())
+    mine = _flat(scene.canonical())
+    diff = {k: mine.get(k) for k in sorted(set(base) | set(mine))
+            if k not in named and base.get(k) != mine.get(k)}
+    extra = {k: v for k, v in (extra or {}).items() if v is not None}
+    if not diff and not extra:
+        return ""
+    text = json.dumps({"scene": diff, "options": extra}, sort_keys=True, default=repr,
+                      separators=(",", ":"))
+    return "-s" + hashlib.sha256(text.encode()).hexdigest()[:SUFFIX_DIGITS]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -82,21 +121,16 @@ def impact_estimate(scene: Scene) -> dict:
     that cannot be made at all, whatever ``--force``).
     """
     from elastocap.impact import (
-        ACCURACY_EDGES,
         FRAME_SPACING,
         MAX_FRAMES,
         edge_count,
         impact_settings,
     )
+    from elastocap.impact import edge_key as impact_edge_key
 
     num = scene.numerics
     n = edge_count(scene)
-    if num.n_edges:
-        edge_key, edge_val = "numerics.n_edges", num.n_edges
-    elif n > ACCURACY_EDGES[num.accuracy]:
-        edge_key, edge_val = "drop.wetted_length", scene.drop.wetted_length
-    else:
-        edge_key, edge_val = "numerics.accuracy", num.accuracy
+    edge_key, edge_val = impact_edge_key(scene) or ("numerics.accuracy", num.accuracy)
     frames = min(MAX_FRAMES, int(num.t_max / FRAME_SPACING) + 1)
     # stored trajectory: positions and velocities (frames x (n+1) x 2 doubles each), plus
     # about 64 doubles per edge of working arrays

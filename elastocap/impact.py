@@ -83,6 +83,7 @@ __all__ = [
     "ImpactResult",
     "build_effects",
     "edge_count",
+    "edge_key",
     "impact_settings",
     "run_impact",
 ]
@@ -225,6 +226,18 @@ def edge_count(scene: Scene) -> int:
     )
 
 
+def edge_key(scene: Scene) -> tuple[str, object] | None:
+    """The scene key (and its value) that sets the edge count of an impact run:
+    ``numerics.n_edges`` when set, ``drop.wetted_length`` when a small Delta raises the
+    count above the accuracy preset's, None when the preset's count applies."""
+    num = scene.numerics
+    if num.n_edges:
+        return "numerics.n_edges", num.n_edges
+    if edge_count(scene) > ACCURACY_EDGES[num.accuracy]:
+        return "drop.wetted_length", scene.drop.wetted_length
+    return None
+
+
 #: The dynamics method of each value of ``numerics.integrator``.
 METHOD = {"rattle": "rattle", "implicit": "midpoint"}
 #: Fewest edges across the wet interval: the wetted part must bend into an arc round the
@@ -258,7 +271,9 @@ def impact_settings(scene: Scene) -> dict:
             f"{MIN_WET_EDGES} are needed (n_edges >= {n_min:.15g} for L = {L:.4g}), or 0 for the "
             "accuracy preset")
     h = L / n
-    dt_max = stable_dt(np.full(n, h), scene.rod.mass_per_length, scene.rod.bending_modulus)
+    # the bound depends on the shortest edge only: one edge of length h stands for the n
+    # equal ones (an array of n would allocate 8n bytes before a huge n can be refused)
+    dt_max = stable_dt(np.array([h]), scene.rod.mass_per_length, scene.rod.bending_modulus)
     if num.integrator == "implicit":
         # no stability bound: dt is chosen for accuracy on the slow modes
         omega1 = euler_bernoulli_omega(
@@ -273,7 +288,7 @@ def impact_settings(scene: Scene) -> dict:
         raise SceneError(
             "numerics.dt",
             num.dt,
-            f"above the stability bound of bending dt_max = {dt_max:.4g} for {n} edges "
+            f"above the stability bound of bending dt_max = {dt_max:.4g} for {n:.6g} edges "
             f"(h = {h:.4g}); use dt <= {dt_max:.4g} or 0 for automatic",
         )
     _check_dt(scene, dt, n)
@@ -299,13 +314,16 @@ MAX_IMPACT_STEPS = 2 * 10**9
 
 
 def _check_dt(scene: Scene, dt: float, n: int) -> None:
-    """Refuse a time step that cannot run the impact (naming the key that set it)."""
+    """Refuse a time step that cannot run the impact, naming the key that set it: the
+    explicit ``numerics.dt``; else the key that set the edge count (the automatic dt scales
+    as h^2: ``numerics.n_edges``, or ``drop.wetted_length`` when a small Delta raised the
+    count); else the rod (``rod.bending_modulus``) at the preset's edges."""
     num = scene.numerics
     if num.dt:
         key, value, origin = "numerics.dt", num.dt, ""
     else:
-        key, value = "rod.bending_modulus", scene.rod.bending_modulus
-        origin = (f" (the automatic dt = {dt:.4g} of {n} edges, from rod.bending_modulus and "
+        key, value = edge_key(scene) or ("rod.bending_modulus", scene.rod.bending_modulus)
+        origin = (f" (the automatic dt of {n:.6g} edges, from rod.bending_modulus and "
                   "rod.mass_per_length)")
     if not (math.isfinite(dt) and dt > 0.0):
         raise SceneError(key, value, f"gives a time step dt = {dt!r}{origin}; a finite "

@@ -30,6 +30,8 @@ from elastocap.sweep.engine import (
     Resolution,
     Sweep,
     SweepResult,
+    check_sweep_resources,
+    report_from_store,
     run_sweep,
     sweep_resolutions,
 )
@@ -61,6 +63,7 @@ __all__ = [
     "TextProgress",
     "Transition",
     "TqdmProgress",
+    "check_sweep_resources",
     "classify_line",
     "grid_points",
     "load_experiments",
@@ -69,6 +72,7 @@ __all__ = [
     "open_executor",
     "parse_range",
     "plot_phase_diagram",
+    "report_from_store",
     "run_impact_task",
     "run_sweep",
 ]

@@ -14,7 +14,7 @@ import math
 import sys
 from pathlib import Path
 
-from elastocap.cli_args import load_scene_from_args, scene_arguments
+from elastocap.cli_args import force_argument, load_scene_from_args, scene_arguments
 from elastocap.io import atomic_path, check_output_folder, check_writable_file, write_text
 from elastocap.jsonutil import jsonable
 from elastocap.scene import SceneError, parse_override
@@ -99,11 +99,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="auto",
         help="progress on stderr (default: tqdm if installed)",
     )
+    force_argument(parser)
 
 
 def _validate(args):
     """Everything that can be refused, refused before any file is touched."""
-    from elastocap.sweep.engine import SWEPT_KEYS, check_verify_levels, plan_sweep, store_resolution
+    from elastocap.sweep.engine import (
+        SWEPT_KEYS,
+        check_sweep_resources,
+        check_verify_levels,
+        plan_sweep,
+        store_resolution,
+    )
     from elastocap.sweep.executors import MissingExtraError, check_scheduler, check_workers
     from elastocap.sweep.export import check_export
     from elastocap.sweep.grid import parse_range
@@ -156,7 +163,10 @@ def _validate(args):
     # a file, or not writable: refused before any run
     check_output_folder(out, "--out")
     check_writable_file(store, "--store")
-    _, _, resolutions = plan_sweep(scene, xs, we_sqrts=we, deltas=delta, verify_levels=levels)
+    points, _, resolutions = plan_sweep(scene, xs, we_sqrts=we, deltas=delta,
+                                        verify_levels=levels)
+    # every run's memory and time steps at the finest level, smallest and largest Delta
+    check_sweep_resources(scene, points, resolutions, getattr(args, "force", False))
     try:
         ResultStore.check(store, store_resolution(resolutions))
     except StoreError as err:
@@ -245,6 +255,10 @@ def run(args) -> int:
 
     scene, xs, we, delta, experiments, out, store, levels, export = _validate(args)
     progress = make_progress(args.progress)
+    if args.progress != "none" and args.scheduler is None and args.workers != 0:
+        # the local workers' compilation is not visible here: say that it happens
+        print("sweep: the local workers compile the impact stepper on first use (up to "
+              "about a minute each on a cold cache; cached after)", file=sys.stderr)
     result = run_sweep(
         scene,
         xs,
@@ -259,6 +273,7 @@ def run(args) -> int:
         verify_every_level=args.every_level,
         overrides=list(args.overrides)
         + ([f"numerics.accuracy={args.accuracy}"] if getattr(args, "accuracy", None) else []),
+        force=getattr(args, "force", False),
     )
     rep = jsonable(result.to_dict())
     out.mkdir(parents=True, exist_ok=True)

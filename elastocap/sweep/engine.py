@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import numbers
 import os
 import socket
 import time
@@ -55,7 +56,7 @@ from pathlib import Path
 
 from elastocap._version import __version__
 from elastocap.scene import Scene
-from elastocap.sweep.executors import SweepExecutor, open_executor
+from elastocap.sweep.executors import SweepExecutor, check_workers, open_executor
 from elastocap.sweep.grid import SkippedPoint, SweepPoint, grid_points, length_unit, make_point
 from elastocap.sweep.progress import NoProgress, Progress
 from elastocap.sweep.refine import (
@@ -70,7 +71,16 @@ from elastocap.sweep.refine import (
 from elastocap.sweep.store import OUTCOMES, ResultStore, StoreError
 from elastocap.sweep.tasks import RESULT_KEYS, run_impact_task, runner_name
 
-__all__ = ["MAX_LEVELS", "Resolution", "Sweep", "SweepResult", "run_sweep", "sweep_resolutions"]
+__all__ = [
+    "MAX_LEVELS",
+    "Resolution",
+    "Sweep",
+    "SweepResult",
+    "check_sweep_resources",
+    "report_from_store",
+    "run_sweep",
+    "sweep_resolutions",
+]
 
 #: Scene keys every sweep point sets (a --set of one of them would be silently replaced).
 SWEPT_KEYS = ("drop.distance_from_end", "drop.wetted_length", "drop.center")
@@ -150,19 +160,102 @@ def sweep_resolutions(scene: Scene, points, levels: int = 0) -> list[Resolution]
     narrowest = min(p.wetted_length for p in points)
     n_wet = math.ceil(MIN_WET_EDGES * scene.rod.length / narrowest * (1.0 - 1e-12))
     n = num.n_edges or max(impact_settings(base)["n_edges"], n_wet)
-    st = impact_settings(base.with_overrides({"numerics.n_edges": n}))
+    with _edge_cause(scene, points, 0):
+        st = impact_settings(base.with_overrides({"numerics.n_edges": n}))
     out = [Resolution(0, int(n), float(st["dt"]), bool(num.dt), num.integrator)]
     for k in range(1, levels + 1):
         prev = out[-1]
         nk = math.ceil(LEVEL_EDGE_FACTOR * prev.n_edges)
-        auto = float(impact_settings(
-            base.with_overrides({"numerics.n_edges": nk, "numerics.dt": 0.0}))["dt"])
+        with _edge_cause(scene, points, k):
+            auto = float(impact_settings(
+                base.with_overrides({"numerics.n_edges": nk, "numerics.dt": 0.0}))["dt"])
         target = LEVEL_DT_FACTOR * prev.dt
         if auto <= target and not num.dt:
             out.append(Resolution(k, nk, auto, False, num.integrator))
         else:
             out.append(Resolution(k, nk, min(auto, target), True, num.integrator))
     return out
+
+
+def _sweep_edge_key(scene: Scene, points, level: int) -> tuple[str, object, str] | None:
+    """The input that sets the edges (and so the automatic dt) of a sweep's ``level``:
+    (key, value, note), or None when the scene's own keys do (its ``numerics.n_edges``, or
+    the preset's edges at a Delta that needs no more)."""
+    from elastocap.impact import ACCURACY_EDGES, MIN_WET_EDGES, edge_count
+
+    num = scene.numerics
+    option = "--delta/--we"
+    if level > 0:
+        return ("--converge", level, f"level {level} runs {LEVEL_EDGE_FACTOR:g}^{level} x the "
+                "sweep's edges (use fewer levels)")
+    if num.n_edges:
+        return None
+    narrowest = min(points, key=lambda p: p.wetted_length)
+    widest = max(points, key=lambda p: p.wetted_length)
+    d_min, d_max = narrowest.wetted_length, widest.wetted_length
+    n_wet = math.ceil(MIN_WET_EDGES * scene.rod.length / d_min * (1.0 - 1e-12))
+    n_preset = edge_count(scene.with_overrides(widest.overrides()))
+    if n_wet > n_preset:
+        return ("drop.wetted_length", d_min,
+                f"the sweep's smallest Delta ({option}) sets {n_wet:.6g} edges for every run "
+                f"({MIN_WET_EDGES} across it; use a larger one)")
+    if n_preset > ACCURACY_EDGES[num.accuracy]:
+        return ("drop.wetted_length", d_max,
+                f"the sweep's largest Delta ({option}) sets {n_preset:.6g} edges for every run "
+                "(use larger values)")
+    return None
+
+
+@contextlib.contextmanager
+def _edge_cause(scene: Scene, points, level: int):
+    """Re-raise a refusal of the sweep's own ``numerics.n_edges`` (or of the dt it sets for
+    a verification level) naming the sweep input that caused it (:func:`_sweep_edge_key`)."""
+    from elastocap.scene import SceneError
+
+    try:
+        yield
+    except SceneError as err:
+        own = {"numerics.n_edges": scene.numerics.n_edges, "numerics.dt": scene.numerics.dt}
+        cause = _sweep_edge_key(scene, points, level)
+        if cause is None or err.key not in own or (own[err.key] and level == 0):
+            raise
+        key, value, note = cause
+        raise SceneError(key, value, f"{note}; there, {err.allowed}") from None
+
+
+def check_sweep_resources(scene: Scene, points, resolutions, force: bool = False) -> dict:
+    """Refuse a sweep whose runs would exceed the resource limits of one impact
+    (:func:`elastocap.cli_args.check_resources`: memory, time steps), unless ``force``.
+
+    Checked at the sweep's resolution and the finest of the plan, at its smallest and its
+    largest Delta;
+    the refusal (:class:`~elastocap.scene.SceneError`) names the sweep input that makes the
+    runs large (the smallest Delta of ``--delta``/``--we``, ``--converge``), or the scene
+    key. Returns the estimate of the most expensive of the checked runs.
+    """
+    from elastocap.cli_args import impact_estimate
+    from elastocap.scene import SceneError
+
+    narrowest = min(points, key=lambda p: p.wetted_length)
+    widest = max(points, key=lambda p: p.wetted_length)
+    worst = None
+    # the sweep's own level first: a refusal there is not the verification's doing
+    for res, p in ((r, p) for r in {0: resolutions[0], 1: resolutions[-1]}.values()
+                   for p in (narrowest, widest)):
+        est = impact_estimate(scene.with_overrides({**p.overrides(), **res.overrides()}))
+        refusal = est["invalid"] or (None if force else est["refusal"])
+        if refusal is not None:
+            key, value, allowed = refusal
+            own = {"numerics.n_edges": scene.numerics.n_edges,
+                   "numerics.dt": scene.numerics.dt}
+            cause = _sweep_edge_key(scene, points, res.level)
+            if cause is not None and key in own and (res.level > 0 or not own[key]):
+                ckey, cvalue, note = cause
+                raise SceneError(ckey, cvalue, f"{note}; {allowed}")
+            raise SceneError(key, value, allowed)
+        if worst is None or est["memory_bytes"] > worst["memory_bytes"]:
+            worst = est
+    return worst
 
 
 @dataclass
@@ -846,11 +939,11 @@ def _check_scene(scene: Scene) -> None:
 def check_verify_levels(levels, minimum: int = 0) -> int:
     """``levels`` as an integer ``minimum`` ... MAX_LEVELS (refused by message otherwise;
     0 means no verification)."""
-    if (isinstance(levels, bool) or not isinstance(levels, int)
+    if (isinstance(levels, bool) or not isinstance(levels, numbers.Integral)
             or not minimum <= levels <= MAX_LEVELS):
         raise ValueError(f"--converge: got {levels!r}; expected an integer from 1 to "
                          f"{MAX_LEVELS} (verification levels, each 1.5x the edges)")
-    return levels
+    return int(levels)
 
 
 def plan_sweep(scene: Scene, xs, *, we_sqrts=None, deltas=None, verify_levels: int = 0):
@@ -859,6 +952,12 @@ def plan_sweep(scene: Scene, xs, *, we_sqrts=None, deltas=None, verify_levels: i
     _check_scene(scene)
     check_verify_levels(verify_levels)
     points, skipped = grid_points(scene, list(xs), we_sqrts=we_sqrts, deltas=deltas)
+    if not points and skipped:
+        s = skipped[0]
+        raise ValueError(
+            f"{'--delta' if deltas is not None else '--we'}: got no point to run; all "
+            f"{len(skipped)} points of the grid are skipped, e.g. x = {s.x_over_leg:.6g}, "
+            f"Delta = {s.wetted_length:.6g}: {s.reason}")
     return points, skipped, sweep_resolutions(scene, points, verify_levels)
 
 
@@ -887,6 +986,7 @@ def run_sweep(
     verify_levels: int = 0,
     verify_every_level: bool = False,
     overrides=(),
+    force: bool = False,
 ) -> SweepResult:
     """Sweep impacts over (x, We^1/2) or (x, Delta), refine and verify the boundary.
 
@@ -925,12 +1025,24 @@ def run_sweep(
         (``--converge K --every-level``). A bracket holds only if it holds at each.
     overrides : sequence of str
         The ``--set`` overrides the scene was made with (recorded in the report).
+    force : bool
+        Run even when a run is estimated above the resource limits of one impact
+        (:func:`check_sweep_resources`; refused otherwise, before anything is written).
 
     Returns
     -------
     SweepResult
     """
     t0 = time.perf_counter()
+    # numbers of any numeric type (numpy scalars and arrays too) as plain Python numbers:
+    # the result is plain data
+    xs = [_real(v, "--x") for v in xs]
+    we_sqrts = None if we_sqrts is None else [_real(v, "--we") for v in we_sqrts]
+    deltas = None if deltas is None else [_real(v, "--delta") for v in deltas]
+    refine_tol = None if refine_tol is None else _real(refine_tol, "--refine")
+    verify_levels = check_verify_levels(verify_levels)
+    if workers is not None:
+        workers = check_workers(workers)
     if criterion not in ("outcome", "companion_outcome"):
         raise ValueError(f"criterion: got {criterion!r}; expected 'outcome' or 'companion_outcome'")
     if refine_tol is not None and not (refine_tol > 0.0 and math.isfinite(refine_tol)):
@@ -938,6 +1050,7 @@ def run_sweep(
     variable = "we_sqrt" if deltas is None else "wetted_length"
     points, skipped, levels = plan_sweep(scene, xs, we_sqrts=we_sqrts, deltas=deltas,
                                          verify_levels=verify_levels)
+    check_sweep_resources(scene, points, levels, force)
     if not isinstance(store, ResultStore):
         # a bad file, or one made at another resolution, is refused before any write
         ResultStore.check(store, store_resolution(levels))
@@ -952,6 +1065,70 @@ def run_sweep(
             return _run(st, executor, *args)
     finally:
         progress.close()
+
+
+def report_from_store(store) -> dict:
+    """The report of a sweep (the shape of :meth:`SweepResult.to_dict`) rebuilt from its
+    store alone, without running anything: every stored run of the store's latest version,
+    the failures, and each x line classified from its runs at the sweep's own level
+    (:func:`~elastocap.sweep.refine.classify_line`: a bracket where the outcome changes once
+    from open to encapsulated). What a store does not record stays out: ``--set`` overrides,
+    the verification verdicts (``verified`` is False), the skipped points."""
+    from elastocap.sweep.refine import classify_line
+
+    with _opened(store) as st:
+        rows = st.rows()
+        failures = st.failures()
+        resolution = st.resolution()
+    if not rows:
+        raise ValueError(f"PATH: got {str(store)!r}; the store holds no run to draw")
+    version = rows[-1]["version"]
+    rows = [r for r in rows if r["version"] == version]
+    import json
+
+    from elastocap.scene import build_scene
+
+    scene = build_scene(json.loads(rows[0]["scene_json"]), rows[0]["scene_name"])
+    runs = []
+    for r in rows:
+        out = {"x": r["x_over_leg"], "x_scene": r["x"], "we_sqrt": r["we_sqrt"],
+               "wetted_length": r["wetted_length"], "stage": "stored", "cached": True}
+        out.update({k: v for k, v in r.items() if k not in _REPORT_SKIP})
+        runs.append(out)
+    level0 = [r for r in runs if not r.get("level")]
+    variable = ("we_sqrt" if level0 and all(r["we_sqrt"] is not None for r in level0)
+                else "wetted_length")
+    boundary = []
+    for x in sorted({r["x"] for r in level0}):
+        line = [r for r in level0 if r["x"] == x]
+        status, trans = classify_line([r[variable] for r in line],
+                                      [r["outcome"] for r in line])
+        b = {"x": x, "status": status, "low": None, "high": None, "level": 0,
+             "verified": False, "verification": None,
+             "transitions": [t.to_dict() for t in trans]}
+        if status == "bracketed":
+            (t,) = trans
+            b["low"], b["high"] = t.low, t.high
+            for key in ("we_sqrt", "wetted_length"):
+                lo = next(r[key] for r in line if r[variable] == t.low)
+                hi = next(r[key] for r in line if r[variable] == t.high)
+                b[f"{key}_low"], b[f"{key}_high"] = lo, hi
+        boundary.append(b)
+    unit = length_unit(scene)[1]
+    return {
+        "scene": rows[0]["scene_name"], "version": version, "variable": variable,
+        "x_unit": unit, "criterion": "outcome", "resolution": resolution,
+        "verify_levels": 0, "runs": runs, "boundary": boundary,
+        "failed": [dict(f) for f in failures if f.get("version") == version],
+        "store": str(store),
+    }
+
+
+def _real(value, key: str) -> float:
+    """A real number of any numeric type (int, float, numpy scalar) as a Python float."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{key}: got {value!r}; expected a number")
+    return float(value)
 
 
 @contextlib.contextmanager

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import numbers
 import os
 import sys
 import threading
@@ -117,9 +118,10 @@ def check_workers(workers) -> int:
     """``workers`` as an integer >= 1 (None = one per core)."""
     if workers is None:
         return os.cpu_count() or 1
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+    # any integer type (numpy's too), as a plain int
+    if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1:
         raise ValueError(f"--workers: got {workers!r}; expected an integer >= 1")
-    return workers
+    return int(workers)
 
 
 def check_scheduler(address: str) -> None:

@@ -54,6 +54,15 @@ CASES = [
     (["demo", "--set", "numerics.dt=1e-10"], "numerics.dt", "time steps"),
     (["overlay", "supp-fig5"], "the following arguments are required: --delta", ""),
     (["impact", "supp-fig5", "--frames", "1"], "--frames", "from 2 to 200"),
+    # sweeps: every run estimated up front at the plan's finest resolution
+    (["sweep", "fig3-strip", "--x", "1:2:2", "--delta", "1:2:2", "--set", "numerics.dt=1e-6"],
+     "numerics.dt", "2e+08 time steps"),
+    (["sweep", "fig3-strip", "--x", "1:2:2", "--delta", "1e-3:2:2"], "drop.wetted_length",
+     "smallest Delta (--delta/--we) sets 57200 edges"),
+    (["sweep", "fig3-strip", "--x", "1:2:2", "--delta", "1:2:2", "--converge", "4", "--set",
+      "numerics.n_edges=3000"], "--converge", "7.16e+08 time steps"),
+    (["sweep", "fig3-strip", "--x", "1:2:2", "--delta", "1:2:2", "--set",
+      "numerics.n_edges=10000000"], "numerics.n_edges", "3.1e+14 time steps"),
 ]
 
 
@@ -152,3 +161,49 @@ def test_negative_zero_keys_like_zero():
     b = load_scene("supp-fig5", {"effects.damping": 0.0})
     assert math.copysign(1.0, a.effects.damping) == 1.0
     assert a.digest() == b.digest()
+
+
+def test_sweep_force_lifts_a_resource_refusal(monkeypatch):
+    """--force reaches the sweep: the 2e8-step plan is refused without it and accepted with
+    it (the run itself is not started: run_sweep is replaced)."""
+    import elastocap.sweep.engine as engine
+    from elastocap.sweep.engine import check_sweep_resources, plan_sweep
+
+    sc = load_scene("fig3-strip", {"numerics.dt": 1e-6})
+    points, _, res = plan_sweep(sc, [1.0, 2.0], deltas=[1.0, 2.0])
+    with pytest.raises(SceneError, match="numerics.dt"):
+        check_sweep_resources(sc, points, res)
+    assert check_sweep_resources(sc, points, res, force=True)["steps"] == pytest.approx(2e8)
+    # the API refuses as the command does, before the store exists
+    with pytest.raises(SceneError, match="numerics.dt"):
+        engine.run_sweep(sc, [1.0, 2.0], deltas=[1.0, 2.0], store="never.sqlite")
+    assert not os.path.exists("never.sqlite")
+    seen = {}
+
+    def fake_run_sweep(*a, **kw):
+        seen.update(kw)
+        raise SystemExit(0)
+
+    monkeypatch.setattr(engine, "run_sweep", fake_run_sweep)
+    with pytest.raises(SystemExit):
+        main(["sweep", "fig3-strip", "--x", "1:2:2", "--delta", "1:2:2", "--set",
+              "numerics.dt=1e-6", "--force", "--out", os.devnull + "-not-used"])
+    assert seen["force"] is True
+
+
+def test_dt_refusal_names_the_cause():
+    """The automatic dt of many edges is refused naming what set the edges: Delta when it
+    raised the preset's count, numerics.n_edges when set; the rod only at the preset's."""
+    from elastocap.impact import impact_settings
+
+    with pytest.raises(SceneError) as err:  # Delta raises the edges -> dt tiny
+        impact_settings(load_scene("supp-fig5", {"drop.wetted_length": 1e-4,
+                                                 "numerics.t_max": 1e9}))
+    assert err.value.key == "drop.wetted_length" and err.value.value == 1e-4
+    with pytest.raises(SceneError) as err:
+        impact_settings(load_scene("supp-fig5", {"numerics.n_edges": 200000,
+                                                 "numerics.t_max": 1e6}))
+    assert err.value.key == "numerics.n_edges"
+    with pytest.raises(SceneError) as err:  # preset edges, a stiff rod: the rod's doing
+        impact_settings(load_scene("supp-fig5", {"rod.bending_modulus": 1e12}))
+    assert err.value.key == "rod.bending_modulus"

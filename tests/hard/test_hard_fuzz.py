@@ -227,3 +227,79 @@ def test_extremes_refused_by_key_or_inside_the_limits(tmp_path_factory, over, cm
     assert msg.count("\n") == 1 and len(msg) < 400, msg
     assert msg.startswith(f"elastocap: error: {expect_key}: got "), (expect_key, msg)
     assert list(work.iterdir()) == []
+
+
+def _range_text(lo, ratio, n):
+    return f"{lo!r}:{lo * ratio!r}:{n}"
+
+
+_DELTA_RANGE = st.tuples(_log_uniform(-300, 0.7), st.floats(1.0, 1e3), st.integers(1, 3))
+
+
+def _expected_refusal(cmd, over, rng):
+    """The key the library refuses the command's inputs with (None: accepted), from the
+    library's own checks: the scene, the range, and the resource estimates."""
+    from elastocap.cli_args import check_resources
+    from elastocap.overlay import parse_range as overlay_range
+    from elastocap.sweep.engine import check_sweep_resources, plan_sweep
+    from elastocap.sweep.grid import parse_range
+
+    try:
+        if cmd == "sweep":
+            deltas = parse_range(_range_text(*rng), "--delta")
+            scene = load_scene("fig3-strip", over)
+            points, _, res = plan_sweep(scene, [1.0, 2.0], deltas=deltas)
+            check_sweep_resources(scene, points, res)
+        elif cmd == "overlay":
+            scene = load_scene("supp-fig5", over)
+            deltas = overlay_range(_range_text(*rng), "--delta")
+            if deltas.max() > scene.rod.length:
+                return "--delta"
+            for d in (deltas.min(), deltas.max()):
+                check_resources(scene.with_overrides({"drop.wetted_length": float(d)}),
+                                "impact")
+            check_resources(scene, "statics")
+        else:  # demo
+            scene = load_scene("supp-fig5", over)
+            check_resources(scene, "statics")
+            check_resources(scene, "impact")
+    except SceneError as err:
+        return err.key
+    except ValueError as err:  # a range refused by its option
+        return str(err).split(":")[0]
+    return None
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(_EXTREME, min_size=0, max_size=2, unique_by=lambda kv: kv[0]),
+       _DELTA_RANGE, st.sampled_from(["sweep", "overlay", "demo"]))
+def test_extremes_of_sweep_overlay_demo_refused_by_key(tmp_path_factory, over, rng, cmd):
+    """Extreme --set values and ranges: the command refuses with the one-line error naming
+    the key the library names, exit 2, nothing written. Accepted inputs are not run (they
+    could be long): the library's estimate has admitted them inside the limits."""
+    import contextlib
+    import io
+
+    over = dict(over)
+    if cmd == "sweep":  # set by the sweep on every point
+        over.pop("drop.wetted_length", None)
+    expect_key = _expected_refusal(cmd, over, rng)
+    if expect_key is None:
+        return
+    work = tmp_path_factory.mktemp("fuzz")
+    argv = [cmd, "fig3-strip" if cmd == "sweep" else "supp-fig5", "--out", str(work / "o")]
+    if cmd == "sweep":
+        argv += ["--x", "1:2:2", "--delta", _range_text(*rng), "--store", str(work / "s.sq")]
+    elif cmd == "overlay":
+        argv += ["--delta", _range_text(*rng)]
+    for k, v in over.items():
+        argv += ["--set", f"{k}={v!r}"]
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    msg = err.getvalue()
+    assert code == 2, (argv, msg)
+    assert out.getvalue() == ""
+    assert msg.count("\n") == 1 and len(msg) < 400, msg
+    assert msg.startswith(f"elastocap: error: {expect_key}: got "), (expect_key, msg)
+    assert list(work.iterdir()) == []

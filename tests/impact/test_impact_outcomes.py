@@ -2,6 +2,8 @@
 the model leaves out, and the command line."""
 
 import json
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -101,7 +103,10 @@ def test_impact_cli_json_and_files(tmp_path, capsys):
     assert out["outcome"] == "open" and out["at_rest"] is True
     assert out["undecided_reason"] is None
     assert out["settings"]["n_edges"] == 50
-    stem = "impact-supp-fig5-delta2.5-x2.3"  # the scene, Delta and x name the files
+    # the scene, Delta and x name the files, and the digest of the other value set
+    # (numerics.accuracy)
+    stem = Path(out["files"][0]).name.removesuffix(".npz")
+    assert re.fullmatch(r"impact-supp-fig5-delta2\.5-x2\.3-s[0-9a-f]{7}", stem), stem
     assert (tmp_path / f"{stem}-frames.png").stat().st_size > 1000
     meta = json.loads((tmp_path / f"{stem}.json").read_text())
     assert meta["scene"]["name"] == "supp-fig5" and "version" in meta["settings"]

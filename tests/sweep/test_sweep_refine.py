@@ -269,3 +269,69 @@ def test_a_tolerance_below_float_spacing_stops_at_float_resolution(tmp_path, poo
     assert b.low < 1.53 + 1e-15 and b.high > 1.53 - 1e-15
     assert not b.converged and "float resolution" in b.notes[0]
     assert b.refinement_runs < 60  # 0.1 / 2^k reaches double spacing (2e-16) by k ~ 49
+
+
+def _plain(obj, where="result"):
+    """Every value of ``obj`` is plain Python data (exact types, no numpy scalar)."""
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            assert type(k) is str, (where, k)
+            _plain(v, f"{where}.{k}")
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            _plain(v, f"{where}[{i}]")
+    else:
+        assert obj is None or type(obj) in (str, int, float, bool), (where, type(obj))
+
+
+def test_numpy_scalars_and_arrays_are_accepted_and_the_result_is_plain(tmp_path, pool):
+    from elastocap.sweep.executors import check_workers
+
+    assert check_workers(np.int64(2)) == 2 and type(check_workers(np.int64(2))) is int
+    with pytest.raises(ValueError, match="--workers"):
+        check_workers(np.float64(2.0))
+    res = run_sweep(STRIP, np.array([1.0, 2.0]), we_sqrts=np.linspace(0.5, 3.5, 4),
+                    store=tmp_path / "s.sqlite", refine_tol=np.float64(0.3),
+                    workers=np.int64(1), verify_levels=np.int64(0), executor=pool,
+                    run_fn=threshold_run)
+    d = res.to_dict()
+    assert d["refine_tolerance"] == 0.3 and type(d["refine_tolerance"]) is float
+    _plain(d)
+    plain = run_sweep(STRIP, [1.0, 2.0], we_sqrts=[0.5, 1.5, 2.5, 3.5],
+                      store=tmp_path / "s.sqlite", refine_tol=0.3, executor=pool,
+                      run_fn=threshold_run)
+    assert [(b.low, b.high) for b in plain.boundary] == [(b.low, b.high) for b in res.boundary]
+
+
+def _plotted(fig):
+    """What a phase diagram draws: each line's label and data (markers in any order)."""
+    ax = fig.axes[0]
+    return sorted((ln.get_label(), sorted(np.asarray(ln.get_xydata()).round(12).tolist()))
+                  for ln in ax.lines)
+
+
+def test_a_bare_store_redraws_the_same_diagram_without_running(tmp_path, pool, monkeypatch):
+    import elastocap.impact
+    import elastocap.sweep.tasks
+    from elastocap.cli import main
+    from elastocap.sweep.engine import report_from_store
+    from elastocap.sweep.plot import plot_phase_diagram
+
+    store = tmp_path / "s.sqlite"
+    res = run_sweep(STRIP, [1.0, 2.0, 3.0], we_sqrts=[0.5, 1.5, 2.5, 3.5], store=store,
+                    executor=pool, run_fn=threshold_run)
+
+    def forbidden(*a, **k):
+        raise AssertionError("an impact was run")
+
+    monkeypatch.setattr(elastocap.impact, "run_impact", forbidden)
+    monkeypatch.setattr(elastocap.sweep.tasks, "run_impact_task", forbidden)
+    rebuilt = report_from_store(store)
+    assert [(b["x"], b["status"], b["low"], b["high"]) for b in rebuilt["boundary"]] == [
+        (b.x, b.status, b.low, b.high) for b in res.boundary]
+    assert _plotted(plot_phase_diagram(rebuilt)) == _plotted(plot_phase_diagram(res))
+    # the command: no sweep.json beside the store, the figure drawn from the store alone
+    monkeypatch.chdir(tmp_path)
+    assert main(["plot", "s.sqlite", "--out", "re"]) == 0
+    assert (tmp_path / "re" / "phase-diagram.png").stat().st_size > 1000
+    assert main(["plot", "missing.sqlite"]) == 2

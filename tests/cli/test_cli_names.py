@@ -1,0 +1,85 @@
+"""Output names carry every value that tells runs apart: runs that differ never overwrite
+each other; the same command run again replaces its own outputs."""
+
+import argparse
+import json
+
+from elastocap.cli import build_parser, main
+from elastocap.cli_args import load_scene_from_args, run_suffix
+from elastocap.scene import load_scene
+
+FAST = ["--accuracy", "draft", "--progress", "none", "--set", "numerics.t_max=1.0"]
+
+
+def _suffix(argv, **kw):
+    args = build_parser().parse_args(argv)
+    return run_suffix(args, load_scene_from_args(args), **kw)
+
+
+def test_suffix_is_stable_and_tells_values_apart():
+    named = ("drop.wetted_length", "drop.center")
+    plain = _suffix(["impact", "supp-fig5"], named=named)
+    assert plain == ""  # the scene as named: no digest, the name alone says it all
+    # a value the name carries makes no digest
+    assert _suffix(["impact", "supp-fig5", "--set", "drop.wetted_length=3"], named=named) == ""
+    a = _suffix(["impact", "supp-fig5", "--set", "effects.damping=0.1"], named=named)
+    assert a.startswith("-s") and len(a) == 9
+    # the same values typed otherwise: the same digest; another value: another one
+    assert _suffix(["impact", "supp-fig5", "--set", "effects.damping=1e-1"], named=named) == a
+    assert _suffix(["impact", "supp-fig5", "--set", "effects.damping=0.2"], named=named) != a
+    assert _suffix(["impact", "supp-fig5", "--set", "drop.area=1.2"], named=named) != a
+    # setting a key to its default is the scene as named
+    assert _suffix(["impact", "supp-fig5", "--set", "drop.area=1.5"], named=named) == ""
+    args = argparse.Namespace(scene="supp-fig5", overrides=[], accuracy=None)
+    sc = load_scene_from_args(args)
+    assert run_suffix(args, sc, extra={"range": [2.0, 4.0]}) != run_suffix(
+        args, sc, extra={"range": [2.0, 4.5]})
+    assert run_suffix(args, sc, extra={"param": None, "range": None}) == ""
+
+
+def test_distinct_impacts_never_overwrite_and_a_rerun_replaces(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+
+    def run(*extra):
+        assert main(["impact", "supp-fig5", *FAST, "--out", "i", "--json", *extra]) == 0
+        return json.loads(capsys.readouterr().out)["files"]
+
+    first = run()
+    other = run("--set", "effects.damping=0.1")  # same Delta and x, another damping
+    assert not set(first) & set(other)
+    meta = json.loads((tmp_path / first[1]).read_text())
+    # the first run's files are intact: the scene's own damping, not the second run's
+    assert meta["scene"]["effects"]["damping"] == load_scene("supp-fig5").effects.damping != 0.1
+    files = sorted(p.name for p in (tmp_path / "i").iterdir())
+    again = run()
+    assert again == first
+    assert sorted(p.name for p in (tmp_path / "i").iterdir()) == files
+
+
+def test_branches_default_folder_follows_param_range_and_set(tmp_path, monkeypatch):
+    """The default branches folder carries a digest of --set, --param and --range (checked
+    on the folder the command would use, without tracing)."""
+    import elastocap.cli as cli
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def fake_out_folder(args, default_name, kind):
+        seen.append(default_name)
+        raise Stop
+
+    monkeypatch.setattr(cli, "_out_folder", fake_out_folder)
+    for argv in (["branches", "supp-fig5"], ["branches", "supp-fig5", "--range", "2", "4"],
+                 ["branches", "supp-fig5", "--param", "drop.area"],
+                 ["branches", "supp-fig5", "--set", "drop.area=1.2"],
+                 ["branches", "supp-fig5", "--range", "2", "4"]):
+        try:
+            main(argv)
+        except Stop:
+            pass
+    assert seen[0] == "branches-supp-fig5"
+    assert len(set(seen[:4])) == 4 and all(s.startswith("branches-supp-fig5-s") for s in
+                                           seen[1:4])
+    assert seen[4] == seen[1]
