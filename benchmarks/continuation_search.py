@@ -22,8 +22,8 @@ in the cusp region). Prints a table with the ratios this/other; ``--other`` defa
 import argparse
 import json
 import os
-import statistics
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -53,7 +53,8 @@ t, c = time.perf_counter(), time.process_time()
 bs = trace_branches(sc)
 dt, dc = time.perf_counter() - t, time.process_time() - c
 st = bs.metadata.get("search", {}).get("stats", {})
-print(json.dumps({"t": dt, "cpu": dc, "cpu_first": first, "branches": len(bs.branches), "folds": len(bs.folds),
+print(json.dumps({"t": dt, "cpu": dc, "cpu_first": first, "branches": len(bs.branches),
+                  "folds": len(bs.folds),
                   "fold_values": [f["value"] for f in bs.folds],
                   "seeds": st.get("seeds_tried"),
                   "fold_curve_starts": bs.metadata.get("search", {}).get("fold_curve_starts")}))
