@@ -2,12 +2,29 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
+import secrets
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+
+def _replace_atomically(path: Path, write) -> None:
+    """``write(f)`` into a temporary file beside ``path``, then rename it to ``path``: a
+    reader (or a killed writer) never sees half a file."""
+    tmp = path.with_name(f".{path.name}.tmp-{secrets.token_hex(6)}")
+    try:
+        with open(tmp, "xb") as f:  # the user's usual file mode (umask), unlike mkstemp
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
 
 SCHEMA_VERSION = 1
 
@@ -201,8 +218,9 @@ class Branch:
                     arrays[f"sp{i}:{k}"] = v
         summary = self.to_dict()
         arrays["metadata_json"] = np.array(json.dumps(summary, allow_nan=False))
-        np.savez(path, **arrays)
-        path.with_suffix(".json").write_text(json.dumps(summary, indent=2, allow_nan=False))
+        _replace_atomically(path, lambda f: np.savez(f, **arrays))
+        text = json.dumps(summary, indent=2, allow_nan=False).encode()
+        _replace_atomically(path.with_suffix(".json"), lambda f: f.write(text))
         return path
 
     @classmethod

@@ -35,11 +35,15 @@ Built-in methods: ``"rattle"`` (:mod:`dynamics.rattle`, explicit, symplectic) an
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import math
+import os
+import secrets
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -222,7 +226,20 @@ class SimulationResult:
             arrays["contact_forces"] = self.contact_forces
         if context is not None:
             arrays["context"] = np.array(json.dumps(context))
-        np.savez(path, meta=np.array(json.dumps(self.to_dict())), **arrays)
+        # to a temporary file beside it, renamed into place (never half a file); the name
+        # gets ".npz" when it has none, as numpy.savez gives it
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_name(path.name + ".npz")
+        tmp = path.with_name(f".{path.name}.tmp-{secrets.token_hex(6)}")
+        try:
+            with open(tmp, "xb") as f:  # the user's usual file mode (umask)
+                np.savez(f, meta=np.array(json.dumps(self.to_dict())), **arrays)
+            os.replace(tmp, path)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
 
     @staticmethod
     def load_npz_context(path) -> dict | None:

@@ -54,6 +54,21 @@ def test_store_states_false_keeps_observables_and_special_states():
     assert br.folds[0].u.shape == (15,) and abs(br.folds[0].p - BRATU_FOLD) < 2e-9
 
 
+def test_save_is_atomic_a_failed_write_leaves_the_old_files(tmp_path, monkeypatch):
+    br = C.continue_branch(Bratu(16, "fd"), np.zeros(15), 0.0, S)
+    path = br.save(tmp_path / "bratu")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+
+    def half_written(f, **arrays):
+        f.write(b"PK\x03\x04 cut")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez", half_written)
+    with pytest.raises(OSError, match="disk full"):
+        br.save(path)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before  # no temp left
+
+
 def test_save_load_round_trip(tmp_path):
     br = C.continue_branch(Bratu(16, "fd"), np.zeros(15), 0.0, S)
     path = br.save(tmp_path / "bratu")

@@ -91,6 +91,23 @@ def test_stats_are_named_and_round_trip(tmp_path):
     assert {"jacobians", "contact_updates"} <= set(res.stats)
 
 
+def test_save_npz_is_atomic_and_names_like_numpy(tmp_path, monkeypatch):
+    res = _strip("rattle")
+    res.save_npz(tmp_path / "run")  # numpy's rule: ".npz" added
+    assert [p.name for p in tmp_path.iterdir()] == ["run.npz"]
+    before = (tmp_path / "run.npz").read_bytes()
+
+    def half_written(f, **arrays):
+        f.write(b"PK\x03\x04 cut")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez", half_written)
+    with pytest.raises(OSError, match="disk full"):
+        res.save_npz(tmp_path / "run.npz")
+    assert [p.name for p in tmp_path.iterdir()] == ["run.npz"]
+    assert (tmp_path / "run.npz").read_bytes() == before
+
+
 def test_unknown_method_and_options_are_refused_by_name():
     rod = Rod.straight(10, 1.0)
     with pytest.raises(ValueError, match=r"method: got 'euler'; expected one of \('rattle', "
