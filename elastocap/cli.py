@@ -403,7 +403,8 @@ def cmd_overlay(args) -> int:
                         args.force)
     check_resources(scene, "statics", args.force)
     stem = (f"overlay-{scene.name}-delta{_stem_value(deltas.min())}-"
-            f"{_stem_value(deltas.max())}-{len(deltas)}")
+            f"{_stem_value(deltas.max())}-{len(deltas)}"
+            + run_suffix(args, scene, named=("drop.wetted_length",)))
     folder = _out_folder(args, f"overlay-{scene.name}", stem)
     from elastocap.progress import heartbeat
 

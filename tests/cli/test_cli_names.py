@@ -56,6 +56,20 @@ def test_distinct_impacts_never_overwrite_and_a_rerun_replaces(tmp_path, monkeyp
     assert sorted(p.name for p in (tmp_path / "i").iterdir()) == files
 
 
+def test_distinct_overlays_never_overwrite(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+
+    def run(*extra):
+        argv = ["overlay", "supp-fig5", "--delta", "3.0:4.0:2", *FAST, "--out", "o", "--json"]
+        assert main([*argv, *extra]) == 0
+        return json.loads(capsys.readouterr().out)["files"]
+
+    first = run()
+    other = run("--set", "effects.damping=0.1")
+    assert first and other and not set(first) & set(other)
+    assert all((tmp_path / f).is_file() for f in first + other)  # both runs' files kept
+
+
 def test_branches_default_folder_follows_param_range_and_set(tmp_path, monkeypatch):
     """The default branches folder carries a digest of --set, --param and --range (checked
     on the folder the command would use, without tracing)."""
