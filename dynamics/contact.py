@@ -666,6 +666,20 @@ def _gap(x, i, j, u, nx, nz, d):
 
 
 @numba.njit(cache=True, inline="always")
+def _activate(ck, eq, p, na, K):
+    """Pair ``p`` joins the ``na`` active contacts (multiplier 0, an inequality): the new
+    count, or -1 (failure 2 recorded) when the ``K`` slots are full."""
+    if na >= K:
+        ck.meta[_FAIL] = 2
+        return -1
+    ck.active[na] = p
+    ck.mu_pos[na] = 0.0
+    eq[na] = 0
+    ck.mark[p] = 1
+    return na + 1
+
+
+@numba.njit(cache=True, inline="always")
 def _listed_gap(x, ck, p, d):
     """The linearised gap of listed pair ``p`` at ``x`` (its closest point and normal in
     ``ck.pair_geom``)."""
@@ -850,14 +864,9 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
     na = 0
     for p in range(npairs):
         if ck.mark[p] == 0 and ck.pair_geom[p, 3] < reach:
-            if na >= K:
-                ck.meta[_FAIL] = 2
+            na = _activate(ck, eq, p, na, K)
+            if na < 0:
                 return -1
-            ck.active[na] = p
-            ck.mu_pos[na] = 0.0
-            eq[na] = 0
-            ck.mark[p] = 1
-            na += 1
     settled = False
     for _round in range(MAX_ROUNDS):
         ck.meta[_ROUNDS] += 1
@@ -918,14 +927,9 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
             if ck.mark[p] == 0:
                 g = _listed_gap(x, ck, p, thickness)
                 if g < -tol_g:
-                    if na >= K:
-                        ck.meta[_FAIL] = 2
+                    na = _activate(ck, eq, p, na, K)
+                    if na < 0:
                         return -1
-                    ck.active[na] = p
-                    ck.mu_pos[na] = 0.0
-                    eq[na] = 0
-                    ck.mark[p] = 1
-                    na += 1
                     changed = True
         if not changed:
             settled = True
