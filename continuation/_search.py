@@ -75,7 +75,7 @@ from ._branch import Branch
 from ._core import continue_branch, switch_branch
 from ._linalg import as_matrix, factorize
 from ._problem import Evaluator
-from ._settings import ContinuationSettings
+from ._settings import ContinuationSettings, checked_fields
 
 __all__ = [
     "BranchSearch",
@@ -189,11 +189,7 @@ class SearchSettings:
     @classmethod
     def from_dict(cls, d: dict) -> SearchSettings:
         """The settings :meth:`to_dict` wrote (``max_step`` ``None``: undamped)."""
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"SearchSettings.from_dict: unknown fields {sorted(unknown)}")
-        d = dict(d)
+        d = checked_fields(cls, d)
         if d.get("max_step", 0.0) is None:
             d["max_step"] = math.inf
         if "sample_values" in d:

@@ -7,6 +7,15 @@ import math
 from dataclasses import dataclass
 
 
+def checked_fields(cls, d: dict) -> dict:
+    """A copy of ``d``, refused (naming them) if it has keys that are not fields of the
+    dataclass ``cls``: what each settings class's ``from_dict`` reads."""
+    unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
+    if unknown:
+        raise ValueError(f"{cls.__name__}.from_dict: unknown fields {sorted(unknown)}")
+    return dict(d)
+
+
 @dataclass(frozen=True)
 class ContinuationSettings:
     """Immutable settings of the pseudo-arclength driver.
@@ -136,11 +145,7 @@ class ContinuationSettings:
     @classmethod
     def from_dict(cls, d: dict) -> ContinuationSettings:
         """The settings :meth:`to_dict` wrote (``p_min`` / ``p_max`` ``None``: unbounded)."""
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"ContinuationSettings.from_dict: unknown fields {sorted(unknown)}")
-        d = dict(d)
+        d = checked_fields(cls, d)
         for k, inf in (("p_min", -math.inf), ("p_max", math.inf)):
             if k in d and d[k] is None:
                 d[k] = inf
