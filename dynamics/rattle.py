@@ -23,7 +23,8 @@ error stays bounded, O(dt**2), over long runs (``tests/dynamics/test_energy.py``
 Specialisation
 --------------
 For each distinct tuple of effect kernels the method renders :data:`_TEMPLATE` (the
-stepper's functions ``prepare``, ``_step``, ``run``, ``run_frames``, plain Python) with the
+stepper's functions ``prepare``, ``_step``, ``run``, ``run_frames``, ``refresh``, plain
+Python) with the
 dispatch functions that call exactly those kernels (:func:`dynamics.codegen.render`, the
 mechanism both methods use) and loads it from the cache of :mod:`dynamics.cache`, so that
 numba's on-disk cache (``cache=True``) works on it and a second process loads the compiled
@@ -38,7 +39,9 @@ kernel), damping 12%, a constraint effect (ground, clamp) 4-5%; a Python call pe
 would add 3.1 us/step (1.6x at 100 edges), a Python call and a recorded frame every 58
 steps (supp-fig5) 0.4 us/step.  The loops over all coordinates run on flat views of the
 (n, 2) arrays: numba indexes an (n, 2) array with a run-time row stride, which keeps a
-loop scalar.  ``_step``, ``_forces`` and the dispatch functions are inlined into ``run``;
+loop scalar.  ``_step``, ``_forces`` and the dispatch functions are inlined into ``run``,
+and ``run`` into ``run_frames``, the one compiled entry of the time loop (``_step`` has
+one call site, which the rejected-step retries share: the loop is compiled once);
 the calls of the solver kernels still count the references of their array arguments
 (numba does it with atomic operations: a call with 23 arrays cost 170-180 ns, measured), a
 cost the stepper pays because it uses numba's public API only.  The solvers
@@ -245,7 +248,7 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
     return 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy, diag,
         rest, ck$pargs):
     nc = x.size
@@ -272,37 +275,44 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,
         if HAS_DAMPING:  # only damping touches v before the projection can fail
             for j in range(nc):
                 vbf[j] = vf[j]
-        st = _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf,
-                   winvf, xf, vf, winv0f, cw, lam, bw, energy, diag, ck$pargs)
-        if st == 2:
-            # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps, without the
-            # multiplier predictor (it scales with the step squared)
-            for j in range(nc):
-                if HAS_DAMPING:
-                    vf[j] = vbf[j]
-                xbf[j] = xf[j]
-                vbf[j] = vf[j]
-                fbf[j] = Ff[j]
-            for level in range(1, MAX_HALVINGS + 1):
-                diag[6] += 1
-                sub = 2 ** level
-                h = dt / sub
-                st = 0
-                lam[:] = 0.0
-                for j in range(sub):
-                    st = _step(x, v, t + j * h, h, edge_len, mass, winv0, B, F, xn, vh, winv,
-                               Ff, xnf, vhf, winvf, xf, vf, winv0f, cw, lam, bw, energy,
-                               diag, ck$pargs)
-                    if st != 0:
-                        break
-                if st == 0:
-                    if level > diag[7]:
-                        diag[7] = level
+        # the step as 1 substep; if rejected, retried as 2, 4, ... 2**MAX_HALVINGS
+        # substeps from the state before it, without the multiplier predictor (it scales
+        # with the step squared).  One call site of ``_step`` (inlined): the loop is
+        # compiled once.
+        level = 0
+        while True:
+            sub = 2 ** level
+            h = dt / sub
+            st = 0
+            for j in range(sub):
+                st = _step(x, v, t + j * h, h, edge_len, mass, winv0, B, F, xn, vh, winv,
+                           Ff, xnf, vhf, winvf, xf, vf, winv0f, cw, lam, bw, energy, diag,
+                           ck$pargs)
+                if st != 0:
                     break
+            if st == 0:
+                break
+            if level == 0:
+                # the state before the step (a failed step moves no position or force)
+                for j in range(nc):
+                    if HAS_DAMPING:
+                        vf[j] = vbf[j]
+                    xbf[j] = xf[j]
+                    vbf[j] = vf[j]
+                    fbf[j] = Ff[j]
+            else:
                 for j in range(nc):
                     xf[j] = xbf[j]
                     vf[j] = vbf[j]
                     Ff[j] = fbf[j]
+            if level == MAX_HALVINGS:
+                break
+            level += 1
+            diag[6] += 1
+            lam[:] = 0.0
+        if level > 0:
+            if st == 0 and level > diag[7]:
+                diag[7] = level
             lam[:] = 0.0
             if st != 0:
                 status = 2
@@ -324,6 +334,16 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,
             break
     _record_constraint_error(x, edge_len, diag)
     return status, steps
+
+
+@numba.njit(cache=True)
+def refresh(x, v, t, edge_len, mass, B, A, bw, energy, diag$pargs):
+    # forces and energies at the current state (after an event changed parameters): what
+    # a ``run`` of 0 steps does, without compiling ``run`` on its own
+    nc = x.size
+    _forces(x, x.reshape(nc), v, t, edge_len, mass, B, A[0], A.reshape(A.shape[0], nc)[0],
+            energy, bw$fargs)
+    _record_constraint_error(x, edge_len, diag)
 
 
 @numba.njit(cache=True)
@@ -386,7 +406,8 @@ def compile_stepper(effects=()):
     Returns
     -------
     module
-        With numba functions ``run``, ``run_frames``, ``prepare`` and ``_forces``.
+        With numba functions ``run_frames`` (the time loop), ``prepare`` (the initial
+        projection) and ``refresh`` (forces and energies after an event).
         Compilation happens lazily at the first call (loaded from numba's cache when
         available).
     """
@@ -465,16 +486,16 @@ class Run:
                      self.energy, self.diag, rest_arr, self.ck)
 
     def compiled(self) -> bool:
-        return is_compiled(self.mod, ("run", "run_frames", "prepare"))
+        return is_compiled(self.mod, ("run_frames", "prepare", "refresh"))
 
     def compile_estimate(self) -> float:
         return COMPILE_BASE_S + COMPILE_PER_EFFECT_S * len(self.effects)
 
     def warm(self):
-        """Project the initial state, compile (or load) ``run`` and ``run_frames``."""
+        """Project the initial state, compile (or load) ``run_frames`` and ``refresh``."""
         w = self.work
         self.mod.prepare(self.x, self.v, self.t0, w[0], w[2], w[4], w[5], w[6], self.params)
-        self.mod.run(self.x, self.v, self.t0, self.dt, 0, *w, self.params)
+        self.after_event(0)
         pos = np.empty((1, self.x.shape[0], 2))
         self.mod.run_frames(self.x, self.v, self.t0, self.dt, 0, np.zeros(0, np.int64),
                             np.zeros(0, np.bool_), pos, np.empty((1, 1 + self.n_energies)),
@@ -486,8 +507,9 @@ class Run:
 
     def after_event(self, step):
         # re-evaluate forces and energies with the new parameters
-        self.mod.run(self.x, self.v, self.t0 + step * self.dt, self.dt, 0, *self.work,
-                     self.params)
+        w = self.work
+        self.mod.refresh(self.x, self.v, self.t0 + step * self.dt, w[0], w[1], w[3], w[4],
+                         w[7], w[8], w[9], self.params)
 
     def frame(self, pos, ens, rec_steps, nrec, step):
         pos[nrec] = self.x
