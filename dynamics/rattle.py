@@ -24,12 +24,12 @@ Specialisation
 --------------
 For each distinct tuple of effect kernels the method renders :data:`_TEMPLATE` (the
 stepper's functions ``prepare``, ``_step``, ``run``, ``run_frames``, ``refresh``, plain
-Python) with the
-dispatch functions that call exactly those kernels (:func:`dynamics.codegen.render`, the
-mechanism both methods use) and loads it from the cache of :mod:`dynamics.cache`, so that
-numba's on-disk cache (``cache=True``) works on it and a second process loads the compiled
-loop instead of compiling it.  An absent effect costs nothing, and all the steps between
-two output frames or events run inside one compiled call (no Python per step), as does the
+Python) with the dispatch functions that call exactly those kernels
+(:func:`dynamics.codegen.render`, the mechanism both methods use) and loads it from the
+cache of :mod:`dynamics.cache`, so that numba's on-disk cache (``cache=True``) works on it
+and a second process loads the compiled loop instead of compiling it. An absent effect
+costs nothing, and all the steps between two output frames or events run inside one
+compiled call (no Python per step), as does the
 recording of the output frames
 (``run_frames``: positions and energies written into preallocated arrays; Python only
 between events).  Measured (``benchmarks/dynamics_speed.py``, 200 edges): the generated

@@ -233,15 +233,13 @@ def test_violent_landing_retries_rejected_steps_with_substeps():
     assert r.positions[:, :, 1].min() >= 0.0
     assert r.stats["constraint_error"] < 1e-12
     # the retries share the step's one compiled call site with the plain steps: the
-    # trajectory is, bit for bit, that of the loop with a separate retry call (the code
-    # before that change, same machine and numba; to 1e-9 elsewhere)
+    # trajectory is, bit for bit, that of a loop with a separate retry call site (recorded
+    # with that loop on this machine and numba version).  Elsewhere round-off differs and,
+    # after 1822 rejected steps, no tolerance is known to hold: the physical checks above
+    # are what a different build is held to.
     ref = np.load(Path(__file__).parent / "data" / "reference_rejected_steps.npz")
-    same_build = (str(ref["numba_version"]) == numba.__version__
-                  and str(ref["machine"]) == platform.machine())
-    if same_build:
+    if (str(ref["numba_version"]) == numba.__version__
+            and str(ref["machine"]) == platform.machine()):
         assert r.stats["rejected_steps"] == int(ref["rejected_steps"])
-    for got, key in ((r.positions, "positions"), (r.velocities, "velocities")):
-        if same_build:
+        for got, key in ((r.positions, "positions"), (r.velocities, "velocities")):
             assert np.array_equal(got, ref[key]), np.abs(got - ref[key]).max()
-        else:
-            np.testing.assert_allclose(got, ref[key], rtol=0, atol=1e-9)
