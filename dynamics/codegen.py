@@ -63,7 +63,24 @@ _DISPATCH = '@numba.njit(cache=True, inline="always")'
 #: energy ``ke``; True once the rod has stayed below the threshold for the duration.
 #: ``_record_constraint_error(x, edge_len, diag)``: the relative edge-length error of the
 #: final state into ``diag[0]`` (the largest seen).
+#: ``_copy1(dst, src)`` / ``_copy2(dst, src)``: ``dst[...] = src`` for arrays of one and two
+#: dimensions and equal shapes, as loops.  numba compiles a slice assignment from an array
+#: with a formatted shape-mismatch message (string formatting, about 3.5 s of compile
+#: the first time in a process); the loops have none.
 _SHARED = '''
+@numba.njit(cache=True, inline="always")
+def _copy1(dst, src):
+    for i in range(dst.shape[0]):
+        dst[i] = src[i]
+
+
+@numba.njit(cache=True, inline="always")
+def _copy2(dst, src):
+    for i in range(dst.shape[0]):
+        for j in range(dst.shape[1]):
+            dst[i, j] = src[i, j]
+
+
 @numba.njit(cache=True, inline="always")
 def _at_rest(ke, dt, rest):
     if rest[0] > 0.0:

@@ -1408,21 +1408,21 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
     steps = 0
     for s in range(n_steps):
         t = t0 + s * dt
-        xb[:, :] = x
-        vb[:, :] = v
-        ab_[:, :] = acc
-        mub[:] = mu
-        hb[:] = held
+        _copy2(xb, x)
+        _copy2(vb, v)
+        _copy2(ab_, acc)
+        _copy1(mub, mu)
+        _copy1(hb, held)
         st = _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, diag,
                    opts, lr, ck$pargs)
         if st < 0:
             # rejected step: retry as 2, 4, ... 2**MAX_HALVINGS substeps
             for level in range(1, MAX_HALVINGS + 1):
-                x[:, :] = xb
-                v[:, :] = vb
-                acc[:, :] = ab_
-                mu[:] = mub
-                held[:] = hb
+                _copy2(x, xb)
+                _copy2(v, vb)
+                _copy2(acc, ab_)
+                _copy1(mu, mub)
+                _copy1(held, hb)
                 diag[6] += 1
                 sub = 2 ** level
                 h = dt / sub
@@ -1436,9 +1436,9 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
                         diag[7] = level
                     break
             if st < 0:
-                x[:, :] = xb
-                v[:, :] = vb
-                held[:] = hb
+                _copy2(x, xb)
+                _copy2(v, vb)
+                _copy1(held, hb)
                 status = 2
                 break
         steps += 1

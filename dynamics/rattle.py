@@ -147,13 +147,13 @@ def _forces(x, xf, v, t, edge_len, mass, B, F, Ff, energy, bw$fargs):
 def prepare(x, v, t, edge_len, winv0, A, cw, lam$pargs):
     xn = A[1]
     winv = A[3]
-    xn[:, :] = x
-    winv[:, :] = winv0
+    _copy2(xn, x)
+    _copy2(winv, winv0)
     _constrain(xn, v, t, edge_len, winv, 0$pargs)
     lam[:] = 0.0
     err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, False)
     lam[:] = 0.0
-    x[:, :] = xn
+    _copy2(x, xn)
     _constrain(x, v, t, edge_len, winv, 1$pargs)
     velocity_projection(x, v, winv, cw)
     return constraint_error(x, edge_len)

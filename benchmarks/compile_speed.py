@@ -1,0 +1,144 @@
+"""What compiling costs: the first impact of a fresh install, and one new stepper.
+
+Each case runs in a child process whose numba cache (``NUMBA_CACHE_DIR``) and generated
+stepper cache (``DYNAMICS_CACHE_DIR``) are fresh temporary folders; its CPU time (user +
+system, from ``os.wait4``) and wall time are read by this process.
+
+1. ``first impact``: ``run_impact`` of ``supp-fig5`` with every cache empty, what a fresh
+   install pays (the CLI's ``elastocap impact supp-fig5`` adds only the output).
+2. ``new stepper``: the package's numba kernels already cached (a first child compiles
+   them, through a different effect combination), a child compiles the RATTLE and the
+   midpoint stepper of a strip on the ground (capillary + gravity + ground + damping,
+   fig3-strip) and of a bare rod (bending only), one step each.
+
+With ``--baseline REV`` (a git revision, or a folder holding a checkout) the same cases run
+from that tree too, in alternated order, ``--repeat`` rounds: medians and the ratio
+(this tree / baseline) are printed.
+
+Run: ``python benchmarks/compile_speed.py [--baseline REV|DIR] [--repeat K]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.abspath(os.path.join(HERE, ".."))
+sys.path.insert(0, HERE)
+
+from dynamics_speed import _export_revision  # noqa: E402
+
+#: The child's code: ``argv[1]`` the tree (checked to be the one imported), ``argv[2]``
+#: the case.
+SNIPPET = """
+import sys
+import numpy as np
+tree, case = sys.argv[1], sys.argv[2]
+import elastocap
+assert elastocap.__file__.startswith(tree), (elastocap.__file__, tree)
+from elastocap.impact import run_impact
+from elastocap.scene import load_scene
+if case == "first-impact":
+    run_impact(load_scene("supp-fig5"))
+elif case == "warm-kernels":
+    run_impact(load_scene("supp-fig5", {"numerics.t_max": 1.0}))
+    run_impact(load_scene("supp-fig5", {"numerics.t_max": 1.0,
+                                        "numerics.integrator": "implicit"}))
+else:
+    from dynamics import Rod, simulate, stable_dt
+    method, what = case.split(":")
+    n, L, B, effects = 40, 1.0, 1.0, ()
+    if what == "strip":
+        from elastocap.impact import build_effects
+        scene = load_scene("fig3-strip")
+        n, L, B = 100, scene.rod.length, scene.rod.bending_modulus
+        effects = build_effects(scene).effects
+    x = np.zeros((n + 1, 2))
+    x[:, 0] = np.linspace(0.0, L, n + 1)
+    rod = Rod(x, np.zeros_like(x), np.full(n, L / n), 1.0, B)
+    dt = 0.5 * stable_dt(rod.edge_len, rod.mu, rod.B)
+    simulate(rod, effects, method=method, dt=dt, t_end=dt)
+"""
+
+NEW_STEPPER_CASES = ("rattle:strip", "midpoint:strip", "rattle:bare", "midpoint:bare")
+
+
+def child(tree, case, numba_dir, stepper_dir):
+    """(CPU s, wall s) of one child process."""
+    env = dict(os.environ, PYTHONPATH=tree, NUMBA_CACHE_DIR=numba_dir,
+               DYNAMICS_CACHE_DIR=stepper_dir)
+    t0 = time.perf_counter()
+    p = subprocess.Popen([sys.executable, "-c", SNIPPET, tree, case], env=env, cwd=tree,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    _, status, ru = os.wait4(p.pid, 0)
+    wall = time.perf_counter() - t0
+    out, err = p.communicate()
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError(f"{case} in {tree} failed:\n{err.decode()[-3000:]}")
+    return ru.ru_utime + ru.ru_stime, wall
+
+
+def one_round(tree, cases):
+    """{case: (cpu, wall)} for one tree, fresh caches."""
+    res = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        res["first impact"] = child(tree, "first-impact", os.path.join(tmp, "n0"),
+                                    os.path.join(tmp, "s0"))
+        kernels = os.path.join(tmp, "n1")
+        child(tree, "warm-kernels", kernels, os.path.join(tmp, "s1"))
+        for k, case in enumerate(cases):
+            # a copy of the warmed kernel cache per case: each compiles its stepper cold
+            nd = os.path.join(tmp, f"n1-{k}")
+            shutil.copytree(kernels, nd)
+            res[f"new stepper {case}"] = child(tree, case, nd, os.path.join(tmp, f"s2-{k}"))
+    return res
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--baseline", help="git revision or folder to compare against")
+    ap.add_argument("--repeat", type=int, default=2)
+    args = ap.parse_args(argv)
+    trees = {"this tree": ROOT}
+    tmp = None
+    if args.baseline:
+        if os.path.isdir(args.baseline):
+            trees["baseline"] = os.path.abspath(args.baseline)
+        else:
+            tmp = tempfile.mkdtemp(prefix="compile-base-")
+            _export_revision(args.baseline, tmp)
+            trees["baseline"] = tmp
+    results = {k: [] for k in trees}
+    try:
+        for r in range(args.repeat):
+            for label in (trees if r % 2 == 0 else list(trees)[::-1]):
+                results[label].append(one_round(trees[label], NEW_STEPPER_CASES))
+                print(f"round {r + 1} {label}: " + ", ".join(
+                    f"{c} {v[0]:.1f}" for c, v in results[label][-1].items()), flush=True)
+    finally:
+        if tmp:
+            shutil.rmtree(tmp, ignore_errors=True)
+    print(f"\nCPU s (wall s), medians of {args.repeat} rounds, fresh caches per case; "
+          f"load average at the end {os.getloadavg()[0]:.1f}")
+    cases = list(results["this tree"][0])
+    head = f"{'case':28s}" + "".join(f"{k:>22s}" for k in trees)
+    print(head + ("   ratio" if len(trees) > 1 else ""))
+    for c in cases:
+        med = {k: (float(np.median([r[c][0] for r in results[k]])),
+                   float(np.median([r[c][1] for r in results[k]]))) for k in trees}
+        line = f"{c:28s}" + "".join(f"{m[0]:13.1f} ({m[1]:5.1f})" for m in med.values())
+        if len(trees) > 1:
+            line += f"   {med['this tree'][0] / med['baseline'][0]:.2f}"
+        print(line)
+
+
+if __name__ == "__main__":
+    main()
