@@ -23,8 +23,8 @@ error stays bounded, O(dt**2), over long runs (``tests/dynamics/test_energy.py``
 Specialisation
 --------------
 For each distinct tuple of effect kernels the method renders :data:`_TEMPLATE` (the
-stepper's functions ``prepare``, ``_step``, ``run``, ``run_frames``, ``refresh``, plain
-Python) with the dispatch functions that call exactly those kernels
+stepper's functions ``_prepare``, ``_step``, ``run``, ``_refresh`` and ``run_frames``,
+plain Python) with the dispatch functions that call exactly those kernels
 (:func:`dynamics.codegen.render`, the mechanism both methods use) and loads it from the
 cache of :mod:`dynamics.cache`, so that numba's on-disk cache (``cache=True``) works on it
 and a second process loads the compiled loop instead of compiling it. An absent effect
@@ -40,8 +40,9 @@ would add 3.1 us/step (1.6x at 100 edges), a Python call and a recorded frame ev
 steps (supp-fig5) 0.4 us/step.  The loops over all coordinates run on flat views of the
 (n, 2) arrays: numba indexes an (n, 2) array with a run-time row stride, which keeps a
 loop scalar.  ``_step``, ``_forces`` and the dispatch functions are inlined into ``run``,
-and ``run`` into ``run_frames``, the one compiled entry of the time loop (``_step`` has
-one call site, which the rejected-step retries share: the loop is compiled once);
+and ``run``, ``_prepare`` and ``_refresh`` into ``run_frames``, the module's one compiled
+entry (``_step`` has one call site, which the rejected-step retries share: the loop is
+compiled once, and no second entry compiles the inlined dispatch again);
 the calls of the solver kernels still count the references of their array arguments
 (numba does it with atomic operations: a call with 23 arrays cost 170-180 ns, measured), a
 cost the stepper pays because it uses numba's public API only.  The solvers
@@ -131,6 +132,10 @@ from dynamics.contact import contact_positions, contact_velocities
 from dynamics.rod import kinetic_energy
 """
 
+#: Modes of the generated ``run_frames``, the module's one compiled entry: run to the
+#: stops, project the initial state, evaluate forces and energies (after an event).
+RUN, PREPARE, REFRESH = 0, 1, 2
+
 #: Body of the generated module (:func:`dynamics.codegen.render`, which generates the
 #: effects' dispatch functions ``_external_forces``, ``_damp``, ``_constrain`` and the flags
 #: before it; ``$pargs`` / ``$fargs`` stand for the effects' parameter arrays).
@@ -143,8 +148,8 @@ def _forces(x, xf, v, t, edge_len, mass, B, F, Ff, energy, bw$fargs):
     _external_forces(x, v, t, edge_len, mass, F, energy$fargs)
 
 
-@numba.njit(cache=True)
-def prepare(x, v, t, edge_len, winv0, A, cw, lam$pargs):
+@numba.njit(cache=True, inline="always")
+def _prepare(x, v, t, edge_len, winv0, A, cw, lam$pargs):
     xn = A[1]
     winv = A[3]
     _copy2(xn, x)
@@ -336,10 +341,10 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv0, B, A, cw, lam, bw, energy,
     return status, steps
 
 
-@numba.njit(cache=True)
-def refresh(x, v, t, edge_len, mass, B, A, bw, energy, diag$pargs):
+@numba.njit(cache=True, inline="always")
+def _refresh(x, v, t, edge_len, mass, B, A, bw, energy, diag$pargs):
     # forces and energies at the current state (after an event changed parameters): what
-    # a ``run`` of 0 steps does, without compiling ``run`` on its own
+    # a ``run`` of 0 steps does
     nc = x.size
     _forces(x, x.reshape(nc), v, t, edge_len, mass, B, A[0], A.reshape(A.shape[0], nc)[0],
             energy, bw$fargs)
@@ -347,10 +352,18 @@ def refresh(x, v, t, edge_len, mass, B, A, bw, energy, diag$pargs):
 
 
 @numba.njit(cache=True)
-def run_frames(x, v, t0, dt, step, stops, record, pos, ens, rec_steps, nrec, edge_len, mass,
-               winv0, B, A, cw, lam, bw, energy, diag, rest, ck$pargs):
-    # run to each stop in turn (one run call per stop, as a Python loop over run would
-    # do) and record the frames flagged in ``record``
+def run_frames(mode, x, v, t0, dt, step, stops, record, pos, ens, rec_steps, nrec, edge_len,
+               mass, winv0, B, A, cw, lam, bw, energy, diag, rest, ck$pargs):
+    # the module's one compiled entry (each entry would compile the kernels' inlined
+    # dispatch again): mode PREPARE projects the initial state, REFRESH evaluates forces
+    # and energies at step ``step``, RUN runs to each stop in turn (one run call per stop,
+    # as a Python loop over run would do) and records the frames flagged in ``record``
+    if mode == PREPARE:
+        _prepare(x, v, t0, edge_len, winv0, A, cw, lam$pargs)
+        return 0, step, nrec
+    if mode == REFRESH:
+        _refresh(x, v, t0 + step * dt, edge_len, mass, B, A, bw, energy, diag$pargs)
+        return 0, step, nrec
     status = 0
     for k in range(stops.shape[0]):
         if stops[k] > step:
@@ -386,7 +399,8 @@ def _generate_source(refs):
     (n, 2) array with a run-time row stride, which keeps a loop scalar.
     """
     imports = (_IMPORTS + f"SHAKE_FINAL = {SHAKE_FINAL!r}\nCONTACT_ROUNDS = {CONTACT_ROUNDS}\n"
-               f"MAX_HALVINGS = {MAX_HALVINGS}\n")
+               f"MAX_HALVINGS = {MAX_HALVINGS}\nRUN, PREPARE, REFRESH = {RUN}, {PREPARE}, "
+               f"{REFRESH}\n")
     return render(_TEMPLATE, [(kind, mod, name, None, native)
                               for kind, mod, name, native in refs], imports)
 
@@ -406,8 +420,9 @@ def compile_stepper(effects=()):
     Returns
     -------
     module
-        With numba functions ``run_frames`` (the time loop), ``prepare`` (the initial
-        projection) and ``refresh`` (forces and energies after an event).
+        With the numba function ``run_frames(mode, ...)``: the time loop (mode
+        :data:`RUN`), the initial projection (:data:`PREPARE`) and the forces and energies
+        after an event (:data:`REFRESH`).
         Compilation happens lazily at the first call (loaded from numba's cache when
         available).
     """
@@ -486,30 +501,33 @@ class Run:
                      self.energy, self.diag, rest_arr, self.ck)
 
     def compiled(self) -> bool:
-        return is_compiled(self.mod, ("run_frames", "prepare", "refresh"))
+        return is_compiled(self.mod, ("run_frames",))
 
     def compile_estimate(self) -> float:
         return COMPILE_BASE_S + COMPILE_PER_EFFECT_S * len(self.effects)
 
+    def _entry(self, mode, step=0, stops=None, record=None, pos=None, ens=None,
+               rec_steps=None, nrec=0):
+        if stops is None:  # PREPARE, REFRESH: no stops, no frames (arrays of the types)
+            stops, record = np.zeros(0, np.int64), np.zeros(0, np.bool_)
+            pos, ens = np.empty((1, self.x.shape[0], 2)), np.empty((1, 1 + self.n_energies))
+            rec_steps = np.empty(1, np.int64)
+        return self.mod.run_frames(mode, self.x, self.v, self.t0, self.dt, step, stops,
+                                   record, pos, ens, rec_steps, nrec, *self.work,
+                                   self.params)
+
     def warm(self):
-        """Project the initial state, compile (or load) ``run_frames`` and ``refresh``."""
-        w = self.work
-        self.mod.prepare(self.x, self.v, self.t0, w[0], w[2], w[4], w[5], w[6], self.params)
+        """Project the initial state and evaluate its forces (compiles or loads the
+        module's one entry, ``run_frames``)."""
+        self._entry(PREPARE)
         self.after_event(0)
-        pos = np.empty((1, self.x.shape[0], 2))
-        self.mod.run_frames(self.x, self.v, self.t0, self.dt, 0, np.zeros(0, np.int64),
-                            np.zeros(0, np.bool_), pos, np.empty((1, 1 + self.n_energies)),
-                            np.empty(1, np.int64), 0, *w, self.params)
 
     def advance(self, step, stops, record, pos, ens, rec_steps, nrec):
-        return self.mod.run_frames(self.x, self.v, self.t0, self.dt, step, stops, record,
-                                   pos, ens, rec_steps, nrec, *self.work, self.params)
+        return self._entry(RUN, step, stops, record, pos, ens, rec_steps, nrec)
 
     def after_event(self, step):
         # re-evaluate forces and energies with the new parameters
-        w = self.work
-        self.mod.refresh(self.x, self.v, self.t0 + step * self.dt, w[0], w[1], w[3], w[4],
-                         w[7], w[8], w[9], self.params)
+        self._entry(REFRESH, step)
 
     def frame(self, pos, ens, rec_steps, nrec, step):
         pos[nrec] = self.x
