@@ -622,12 +622,15 @@ def _point_at(core, x_a, t_a, s_arc, guess=None, fac=None):
     return r
 
 
-def _bisect_on_arc(core, run, k, func, fa, fb):
+def _bisect_on_arc(core, run, k, func, fa, fb, chord=False):
     """Root of ``func(x)`` between points k-1 and k, by Brent's method in arclength.
 
     The points on the arc are corrected on the hyperplanes normal to the tangent at k-1,
-    the rows of the step's own corrector: its last factorization (``run.fac``) serves
-    their chord iterations."""
+    the rows of the step's own corrector; with ``chord`` its last factorization
+    (``run.fac``) serves their chord iterations (:meth:`_Core.chord`). Not for branch
+    points: there the bordered matrix is singular, the chord iteration would refactorize
+    at every point, and the corrected points are as ill-determined as the matrix is
+    singular, so each corrector gives other ones (full Newton is kept there)."""
     xa = np.concatenate([run.u[k - 1], [run.p[k - 1]]])
     xb = np.concatenate([run.u[k], [run.p[k]]])
     ta = run.t[k - 1]
@@ -635,7 +638,7 @@ def _bisect_on_arc(core, run, k, func, fa, fb):
     cache = {}
     # the factorization the points are corrected with: the step's own, then the last one
     # made while correcting them (nearer the root, where Brent's points close in)
-    fac = [run.fac]
+    fac = [run.fac if chord else None]
     # corrected points by arclength: each new one starts from the nearest (Brent's points
     # close in on the root, so Newton starts ever closer to the solution it converges to)
     near = {0.0: xa, sb: xb}
@@ -649,7 +652,7 @@ def _bisect_on_arc(core, run, k, func, fa, fb):
         r = _point_at(core, xa, ta, sv, guess=near[s0] + (sv - s0) * ta, fac=fac[0])
         if not r.ok:
             raise _LocateError(r.reason)
-        if r.fac is not None:
+        if chord and r.fac is not None:
             fac[0] = r.fac
         val = func(r.x)
         cache[sv] = (r.x, val)
@@ -870,7 +873,7 @@ def _detect(core, run, k, skip_first=False):
                               abs(run.p[k] - run.p[k - 1]), False, name, {})
             if s.locate:
                 xr, prec = _bisect_on_arc(core, run, k, lambda x, g=g: float(g(x[:n], x[n])),
-                                          ga, gb)
+                                          ga, gb, chord=True)
                 if xr is not None:
                     sp.p, sp.u, sp.precision, sp.located = float(xr[n]), xr[:n].copy(), prec, True
             run.sps.append(sp)
