@@ -110,6 +110,17 @@ def _positions(z0, theta, h, out):
     return out
 
 
+@numba.njit(cache=True)
+def _constraint_jacobian(hc, out):
+    """d z_k / du into the zeroed ``out`` (n + 1, n + 1): column 0 ones, row k holds
+    ``hc[j] = h cos theta_j`` for j < k (the lower triangle, written entry by entry)."""
+    for k in range(out.shape[0]):
+        out[k, 0] = 1.0
+        for j in range(k):
+            out[k, j + 1] = hc[j]
+    return out
+
+
 def capillary_hessian_nodes(X, s_nodes, s1, s2, area, gamma):
     """Exact Hessian of gamma lambda in the positions of the wet nodes.
 
@@ -294,11 +305,8 @@ class DiscreteStrip:
 
     def constraint_jacobian(self, u) -> np.ndarray:
         """d z_k / du, shape (n + 1, n + 1): row k = (1, h cos theta_j for j < k, 0...)."""
-        G = np.zeros((self.n + 1, self.n + 1))
-        G[:, 0] = 1.0
-        hc = self.h * np.cos(u[1:])
-        G[1:, 1:] = np.tril(np.broadcast_to(hc, (self.n, self.n)))
-        return G
+        hc = self.h * np.cos(np.asarray(u[1:], dtype=float))
+        return _constraint_jacobian(hc, np.zeros((self.n + 1, self.n + 1)))
 
     # ------------------------------------------------------------------ energy
     def _node_to_u(self, theta, g):
