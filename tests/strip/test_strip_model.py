@@ -118,6 +118,58 @@ def test_constraint_jacobian_bit_identical_to_the_triangle_and_the_heights():
         assert np.max(np.abs(G - fd)) < 1e-9
 
 
+def _descent_decomposing_every_iteration(strip, u0, tol=1e-10, max_iter=500):
+    """minimize_energy's trust-region loop with an eigen-decomposition at every iteration,
+    rejected steps included (the reference for the decomposition it keeps)."""
+    from elastocap.strip import solve
+
+    u = np.array(u0, dtype=float)
+    k = 10.0 * strip.B / strip.h**3
+    E, g, H = solve._penalty(strip, u, k)
+    radius = 1.0
+    for _ in range(max_iter):
+        if float(np.linalg.norm(g)) <= solve._DESCENT_GTOL:
+            break
+        lam, V = np.linalg.eigh(0.5 * (H + H.T))
+        d, pred, boundary = solve._trust_step(lam, V, g, radius)
+        E1, g1, H1 = solve._penalty(strip, u + d, k)
+        rho = (E - E1) / pred if pred > 0.0 else -1.0
+        if rho < 0.25:
+            radius *= 0.25
+        elif rho > 0.75 and boundary:
+            radius = min(2.0 * radius, 1e3)
+        if rho > 0.15:
+            u, E, g, H = u + d, E1, g1, H1
+        if radius < 1e-14:
+            break
+    return solve_equilibrium(strip, u, active=strip.heights(u) <= 1e-9, tol=tol)
+
+
+def test_descent_keeps_the_decomposition_over_rejected_steps_bit_identical(monkeypatch):
+    # a rejected trust-region step leaves H as it is: its eigen-decomposition is kept, the
+    # descent is the same bit for bit, with fewer decompositions
+    calls = {"n": 0}
+    eigh = np.linalg.eigh
+
+    def counted(a, *args, **kw):
+        calls["n"] += 1
+        return eigh(a, *args, **kw)
+
+    monkeypatch.setattr(np.linalg, "eigh", counted)
+    S = DiscreteStrip(60, L, 2.0, 0.6, 0.36, 40.0)
+    s = (np.arange(S.n) + 0.5) * S.h
+    folded = np.concatenate([[0.0], math.pi * np.clip((s - S.s1) / (S.s2 - S.s1), 0, 1)])
+    for u0 in (flat_state(S), folded):
+        calls["n"] = 0
+        eq = minimize_energy(S, u0)
+        kept = calls["n"]
+        calls["n"] = 0
+        ref = _descent_decomposing_every_iteration(S, u0)
+        assert eq.success and np.array_equal(eq.u, ref.u)
+        assert np.array_equal(eq.reactions, ref.reactions) and eq.energy == ref.energy
+        assert kept < calls["n"]
+
+
 def test_invalid_input_named():
     with pytest.raises(ValueError, match="n: got 2"):
         DiscreteStrip(2, L, 2.0, 1.1, 0.36, 40.0)
