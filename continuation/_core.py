@@ -170,8 +170,9 @@ class _Core:
         prev = math.inf
         best_x, best_norm, best_F, best_arc = None, math.inf, None, 0.0
         fresh = False  # whether the last step was taken with a factorization made for it
-        step = math.inf
-        for _it in range(max_iter):
+        step = normF = math.inf
+        it = 0
+        for it in range(1, max_iter + 1):
             F = self.ev.F(x[:n], x[n])
             normF = float(np.abs(F).max()) if F.size else 0.0
             if not math.isfinite(normF):
@@ -195,11 +196,11 @@ class _Core:
             x = x + dx
             step = float(np.abs(dx).max()) / (1.0 + float(np.abs(x).max()))
             if step <= xtol:
-                return _Corrected(x, _it + 1, fac, True, "", normF)
+                return _Corrected(x, it, fac, True, "", normF)
         if best_x is not None and (best_norm <= tol and abs(best_arc) <= tol * (1.0 + abs(c))
                                    or step <= tol):
-            return _Corrected(best_x, _it + 1, fac, True, "", best_norm)
-        return _Corrected(x0, _it + 1, fac, False, "chord iteration not contracting", normF)
+            return _Corrected(best_x, it, fac, True, "", best_norm)
+        return _Corrected(x0, it, fac, False, "chord iteration not contracting", normF)
 
     def tangent_from(self, fac, t_ref=None):
         """Unit tangent from a bordered factorization whose last row is ``W t_ref``."""
