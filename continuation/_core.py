@@ -26,6 +26,10 @@ from ._linalg import bordered, factorize, inertia_negative
 from ._problem import Evaluator, check_jacobian
 from ._settings import ContinuationSettings
 
+#: Largest residual ratio between consecutive chord iterations (:meth:`_Core.chord`): a
+#: slower iteration is abandoned for the full Newton corrector.
+CHORD_RATE = 0.25
+
 # Branch-point test function borders: fixed pseudo-random vectors, so results
 # are reproducible; any vectors not orthogonal to the kernels work.
 _BORDER_SEED = 20240611
@@ -137,6 +141,66 @@ class _Core:
             if float(np.abs(dx).max()) <= tol * (1.0 + float(np.abs(x).max())):
                 return _Corrected(x, it + 1, fac, True, "", normF)
         raise AssertionError("unreachable")
+
+    def chord(self, x0, row, c, fac, tol=None, xtol=None, max_iter=None) -> _Corrected:
+        """Newton on ``F(x) = 0, row . x = c`` reusing the factorization ``fac`` (a bordered
+        matrix with this row, near the solution) for as long as it serves: the chord
+        (simplified Newton) iteration, one residual and one back-substitution per step.
+
+        Any fixed nonsingular matrix leaves the solutions unchanged (they are the fixed
+        points of ``x - A^-1 R(x)``); only the rate depends on how close ``A`` is to the
+        Jacobian there. Where a step reduces max|F| by less than ``CHORD_RATE``, the bordered
+        matrix is factorized afresh at the iterate of least residual (a Newton step), and
+        the iteration goes on with the new factorization; where even a fresh one does not
+        reduce it, the residual is at its round-off floor. The iteration stops at an update
+        below ``xtol`` relative to the state (default: ``locate_tol``, so that the point
+        is as accurate as the location it serves), or at the floor, and succeeds if it
+        meets the corrector's own criteria there (``max|F| <= tol`` on the constraint, or
+        a last update below ``tol`` relative to the state). Otherwise (``ok`` False, e.g.
+        no contraction from a poor start, ``max_iter`` residuals) the caller runs the full
+        corrector. The returned ``fac`` is the last factorization used.
+        """
+        s = self.s
+        tol = s.newton_tol if tol is None else tol
+        xtol = s.locate_tol if xtol is None else xtol
+        max_iter = 4 * s.max_newton if max_iter is None else max_iter
+        n = self.n
+        x = x0.copy()
+        rhs = np.empty(n + 1)
+        prev = math.inf
+        best_x, best_norm, best_F, best_arc = None, math.inf, None, 0.0
+        fresh = False  # whether the last step was taken with a factorization made for it
+        step = normF = math.inf
+        it = 0
+        for it in range(1, max_iter + 1):
+            F = self.ev.F(x[:n], x[n])
+            normF = float(np.abs(F).max()) if F.size else 0.0
+            if not math.isfinite(normF):
+                break
+            arc = float(row @ x - c)
+            if normF < best_norm and abs(arc) <= 1e-8 * (1.0 + abs(c)):
+                best_x, best_norm, best_F, best_arc = x, normF, F, arc
+            if normF > CHORD_RATE * prev:
+                if fresh or best_x is None:
+                    break  # the round-off floor (or no progress from the start)
+                fac = factorize(self.bmatrix(best_x, row))
+                if fac is None:
+                    break
+                x, F, arc, normF, fresh = best_x, best_F, best_arc, best_norm, True
+            else:
+                fresh = False
+            prev = normF
+            rhs[:n] = -F
+            rhs[n] = -arc
+            dx = fac.solve(rhs)
+            x = x + dx
+            step = float(np.abs(dx).max()) / (1.0 + float(np.abs(x).max()))
+            if step <= xtol:
+                return _Corrected(x, it, fac, True, "", normF)
+        if best_x is not None and (best_norm <= tol and abs(best_arc) <= tol * (1.0 + abs(c))
+                                   or step <= tol):
+            return _Corrected(best_x, it, fac, True, "", best_norm)
+        return _Corrected(x0, it, fac, False, "chord iteration not contracting", normF)
 
     def tangent_from(self, fac, t_ref=None):
         """Unit tangent from a bordered factorization whose last row is ``W t_ref``."""
@@ -364,6 +428,9 @@ class _Run:
         self.p, self.u, self.t, self.ds, self.it, self.stab = [], [], [], [], [], []
         self.det, self.obs, self.ev_vals = [], [], []
         self.sps: list[SpecialPoint] = []
+        # factorization of the last step's bordered matrix (the row of the tangent at the
+        # point before it), near the step's end: reused to locate events on the step
+        self.fac = None
         self.status = B.MAX_STEPS
         self.message = ""
 
@@ -481,6 +548,8 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
             fb = factorize(core.bmatrix(x_new, core.wrow(t)))
             t_new = core.tangent_from(fb) if fb is not None else t_new
             det_new = fb.det_sign() if fb is not None else det_new
+            fac = fb
+        run.fac = fac
         run.add(x_new, t_new, ds, res.iters, det_new)
         k = len(run.p) - 1
         if hook is not None:  # e.g. FoldProblem refreshes its borders
@@ -534,26 +603,43 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
 _LOCATE_STALL_FACTOR = 30.0
 
 
-def _point_at(core, x_a, t_a, s_arc, guess=None):
+def _point_at(core, x_a, t_a, s_arc, guess=None, fac=None):
     """Corrected point at arclength ``s_arc`` from ``x_a`` along ``t_a`` (Newton on the
     hyperplane through ``x_a + s_arc t_a`` normal to ``t_a``, started from ``guess`` when
-    given, else from that predictor)."""
+    given, else from that predictor). With ``fac`` (a factorization of the bordered
+    matrix of that hyperplane near the point) the chord iteration is tried first, and
+    full Newton runs only where it does not contract."""
     row = core.wrow(t_a)
     xp = x_a + s_arc * t_a
-    r = core.correct(xp if guess is None else guess, row, float(row @ xp),
-                     tol=core.s.newton_tol, max_iter=2 * core.s.max_newton)
+    x0 = xp if guess is None else guess
+    c = float(row @ xp)
+    if fac is not None:
+        r = core.chord(x0, row, c, fac, tol=core.s.newton_tol)
+        if r.ok:
+            return r
+    r = core.correct(x0, row, c, tol=core.s.newton_tol, max_iter=2 * core.s.max_newton)
     if not r.ok and r.normF <= _LOCATE_STALL_FACTOR * core.s.newton_tol:
         r.ok = True
     return r
 
 
-def _bisect_on_arc(core, run, k, func, fa, fb):
-    """Root of ``func(x)`` between points k-1 and k, by Brent's method in arclength."""
+def _bisect_on_arc(core, run, k, func, fa, fb, chord=False):
+    """Root of ``func(x)`` between points k-1 and k, by Brent's method in arclength.
+
+    The points on the arc are corrected on the hyperplanes normal to the tangent at k-1,
+    the rows of the step's own corrector; with ``chord`` its last factorization
+    (``run.fac``) serves their chord iterations (:meth:`_Core.chord`). Not for branch
+    points: there the bordered matrix is singular, the chord iteration would refactorize
+    at every point, and the corrected points are as ill-determined as the matrix is
+    singular, so each corrector gives other ones (full Newton is kept there)."""
     xa = np.concatenate([run.u[k - 1], [run.p[k - 1]]])
     xb = np.concatenate([run.u[k], [run.p[k]]])
     ta = run.t[k - 1]
     sb = core.dot(xb - xa, ta)
     cache = {}
+    # the factorization the points are corrected with: the step's own, then the last one
+    # made while correcting them (nearer the root, where Brent's points close in)
+    fac = [run.fac if chord else None]
     # corrected points by arclength: each new one starts from the nearest (Brent's points
     # close in on the root, so Newton starts ever closer to the solution it converges to)
     near = {0.0: xa, sb: xb}
@@ -564,9 +650,11 @@ def _bisect_on_arc(core, run, k, func, fa, fb):
         if sv == sb:
             return fb
         s0 = min(near, key=lambda s: abs(s - sv))
-        r = _point_at(core, xa, ta, sv, guess=near[s0] + (sv - s0) * ta)
+        r = _point_at(core, xa, ta, sv, guess=near[s0] + (sv - s0) * ta, fac=fac[0])
         if not r.ok:
             raise _LocateError(r.reason)
+        if chord and r.fac is not None:
+            fac[0] = r.fac
         val = func(r.x)
         cache[sv] = (r.x, val)
         near[sv] = r.x
@@ -579,7 +667,7 @@ def _bisect_on_arc(core, run, k, func, fa, fb):
         return None, abs(sb)
     if sroot in cache:
         return cache[sroot][0], xtol
-    r = _point_at(core, xa, ta, sroot)
+    r = _point_at(core, xa, ta, sroot, fac=fac[0])
     return (r.x if r.ok else None), xtol
 
 
@@ -786,7 +874,7 @@ def _detect(core, run, k, skip_first=False):
                               abs(run.p[k] - run.p[k - 1]), False, name, {})
             if s.locate:
                 xr, prec = _bisect_on_arc(core, run, k, lambda x, g=g: float(g(x[:n], x[n])),
-                                          ga, gb)
+                                          ga, gb, chord=True)
                 if xr is not None:
                     sp.p, sp.u, sp.precision, sp.located = float(xr[n]), xr[:n].copy(), prec, True
             run.sps.append(sp)

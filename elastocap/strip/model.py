@@ -38,6 +38,7 @@ state (:func:`flat_energy`).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -60,6 +61,7 @@ __all__ = [
     "flat_state",
     "is_encapsulated",
     "point_measures",
+    "shoelace_derivatives",
     "strip_and_interface",
 ]
 
@@ -108,6 +110,44 @@ def _positions(z0, theta, h, out):
         out[j + 1, 0] = out[j, 0] + h * math.cos(theta[j])
         out[j + 1, 1] = out[j, 1] + h * math.sin(theta[j])
     return out
+
+
+@numba.njit(cache=True)
+def _constraint_jacobian(hc, out):
+    """d z_k / du into the zeroed ``out`` (n + 1, n + 1): column 0 ones, row k holds
+    ``hc[j] = h cos theta_j`` for j < k (the lower triangle, written entry by entry)."""
+    for k in range(out.shape[0]):
+        out[k, 0] = 1.0
+        for j in range(k):
+            out[k, j + 1] = hc[j]
+    return out
+
+
+def shoelace_derivatives(P):
+    """Gradient (npt, 2) and Hessian (2 npt, 2 npt) of the shoelace area of the closed
+    polygon P (npt, 2) in its points, ordered (x_0, z_0, x_1, ...).
+
+    dA/dP_k = (z_{k+1} - z_{k-1}, -(x_{k+1} - x_{k-1})) / 2; the Hessian is constant: the
+    blocks (k, k + 1) and (k, k - 1) are +R/2 and -R/2 with R = [[0, 1], [-1, 0]].
+    """
+    npt = P.shape[0]
+    Pn, Pp = np.roll(P, -1, axis=0), np.roll(P, 1, axis=0)  # P_{k+1}, P_{k-1}
+    gA = np.empty((npt, 2))
+    gA[:, 0] = 0.5 * (Pn[:, 1] - Pp[:, 1])
+    gA[:, 1] = 0.5 * -(Pn[:, 0] - Pp[:, 0])
+    return gA, _shoelace_hessian(npt)
+
+
+@functools.cache
+def _shoelace_hessian(npt):
+    R = np.array([[0.0, 1.0], [-1.0, 0.0]])  # d/dP_{k+1} of (1/2) J P_{k+1}, times 2
+    HA = np.zeros((2 * npt, 2 * npt))
+    for k in range(npt):
+        kn, kp = (k + 1) % npt, (k - 1) % npt
+        HA[2 * k : 2 * k + 2, 2 * kn : 2 * kn + 2] += 0.5 * R
+        HA[2 * k : 2 * k + 2, 2 * kp : 2 * kp + 2] -= 0.5 * R
+    HA.flags.writeable = False
+    return HA
 
 
 def capillary_hessian_nodes(X, s_nodes, s1, s2, area, gamma):
@@ -163,15 +203,7 @@ def capillary_hessian_nodes(X, s_nodes, s1, s2, area, gamma):
     a1 = area - a0
     tau, sn, cs, _lam, kappa = cap_geometry(a1, d)
     ta, td = cap_tau_derivatives(tau, sn, cs, a1, d)
-    # gradient and (constant) Hessian of the shoelace area over the closed polygon
-    R = np.array([[0.0, 1.0], [-1.0, 0.0]])  # d/dP_{k+1} of (1/2) J P_{k+1}, times 2
-    gA = np.zeros((npt, 2))
-    HA = np.zeros((2 * npt, 2 * npt))
-    for k in range(npt):
-        kn, kp = (k + 1) % npt, (k - 1) % npt
-        gA[k] = 0.5 * np.array([P[kn, 1] - P[kp, 1], -(P[kn, 0] - P[kp, 0])])
-        HA[2 * k : 2 * k + 2, 2 * kn : 2 * kn + 2] += 0.5 * R
-        HA[2 * k : 2 * k + 2, 2 * kp : 2 * kp + 2] -= 0.5 * R
+    gA, HA = shoelace_derivatives(P)
     u = c / d
     gd = np.zeros((npt, 2))
     gd[0], gd[-1] = -u, u
@@ -190,7 +222,11 @@ def capillary_hessian_nodes(X, s_nodes, s1, s2, area, gamma):
         + cs * Hd
         - kappa * HA
     )
-    T2 = np.kron(T, np.eye(2))
+    # T (x) I_2, the interpolation acting on (x, z) pairs (T >= 0: the entries of the
+    # Kronecker product, written directly)
+    T2 = np.zeros((2 * npt, 2 * m))
+    T2[0::2, 0::2] = T
+    T2[1::2, 1::2] = T
     return i1, T2.T @ HP @ T2
 
 
@@ -294,11 +330,8 @@ class DiscreteStrip:
 
     def constraint_jacobian(self, u) -> np.ndarray:
         """d z_k / du, shape (n + 1, n + 1): row k = (1, h cos theta_j for j < k, 0...)."""
-        G = np.zeros((self.n + 1, self.n + 1))
-        G[:, 0] = 1.0
-        hc = self.h * np.cos(u[1:])
-        G[1:, 1:] = np.tril(np.broadcast_to(hc, (self.n, self.n)))
-        return G
+        hc = self.h * np.cos(np.asarray(u[1:], dtype=float))
+        return _constraint_jacobian(hc, np.zeros((self.n + 1, self.n + 1)))
 
     # ------------------------------------------------------------------ energy
     def _node_to_u(self, theta, g):

@@ -360,11 +360,13 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
     k = 10.0 * strip.B / strip.h**3
     E, g, H = _penalty(strip, u, k)
     radius = 1.0
+    eig = None  # the eigen-decomposition of H, kept while a rejected step leaves H as it is
     for _ in range(max_iter):
         if float(np.linalg.norm(g)) <= _DESCENT_GTOL:
             break
-        lam, V = np.linalg.eigh(0.5 * (H + H.T))
-        d, pred, boundary = _trust_step(lam, V, g, radius)
+        if eig is None:
+            eig = np.linalg.eigh(0.5 * (H + H.T))
+        d, pred, boundary = _trust_step(eig[0], eig[1], g, radius)
         E1, g1, H1 = _penalty(strip, u + d, k)
         rho = (E - E1) / pred if pred > 0.0 else -1.0
         if rho < 0.25:
@@ -373,6 +375,7 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
             radius = min(2.0 * radius, 1e3)
         if rho > 0.15:
             u, E, g, H = u + d, E1, g1, H1
+            eig = None
         if radius < 1e-14:
             break
     z = strip.heights(u)

@@ -20,6 +20,7 @@ from elastocap.strip.model import (
     capillary_hessian_nodes,
     discrete_strip_for,
     flat_state,
+    shoelace_derivatives,
 )
 from elastocap.strip.solve import minimize_energy, solve_equilibrium
 
@@ -98,6 +99,107 @@ def test_capillary_node_hessian_against_its_gradient():
         Ym[i1 + a // 2, a % 2] -= eps
         Hfd[:, a] = (grad(Yp) - grad(Ym)) / (2 * eps)
     assert np.max(np.abs(H - Hfd)) < 1e-6 * np.max(np.abs(H))
+
+
+def test_constraint_jacobian_bit_identical_to_the_triangle_and_the_heights():
+    # the compiled kernel writes the matrix of the numpy form np.tril(h cos theta_j) entry
+    # by entry: the same bits; and its rows are the derivatives of the heights (central
+    # differences, relative step 1e-6: truncation ~1e-12)
+    for n, seed in ((4, 1), (37, 2), (198, 3)):
+        S = DiscreteStrip(n, L, 2.0, 1.1, 0.36, 40.0)
+        u = random_state(S, seed=seed, amp=0.3)
+        G = S.constraint_jacobian(u)
+        ref = np.zeros((n + 1, n + 1))
+        ref[:, 0] = 1.0
+        ref[1:, 1:] = np.tril(np.broadcast_to(S.h * np.cos(u[1:]), (n, n)))
+        assert np.array_equal(G, ref)
+        e = 1e-6
+        fd = np.column_stack([(S.heights(u + e * v) - S.heights(u - e * v)) / (2 * e)
+                              for v in np.eye(n + 1)])
+        assert np.max(np.abs(G - fd)) < 1e-9
+
+
+def test_shoelace_derivatives_bit_identical_to_the_loop_and_against_the_area():
+    # the vectorized gradient and the cached constant Hessian are the per-point formulas
+    # bit for bit; the gradient is the derivative of the shoelace area (central
+    # differences, step 1e-6: exact for a quadratic up to rounding, ~1e-10)
+    rng = np.random.default_rng(4)
+    R = np.array([[0.0, 1.0], [-1.0, 0.0]])
+    for npt in (2, 3, 7, 30):
+        P = rng.standard_normal((npt, 2))
+        gA, HA = shoelace_derivatives(P)
+        g_ref = np.zeros((npt, 2))
+        H_ref = np.zeros((2 * npt, 2 * npt))
+        for k in range(npt):
+            kn, kp = (k + 1) % npt, (k - 1) % npt
+            g_ref[k] = 0.5 * np.array([P[kn, 1] - P[kp, 1], -(P[kn, 0] - P[kp, 0])])
+            H_ref[2 * k : 2 * k + 2, 2 * kn : 2 * kn + 2] += 0.5 * R
+            H_ref[2 * k : 2 * k + 2, 2 * kp : 2 * kp + 2] -= 0.5 * R
+        assert np.array_equal(gA, g_ref) and np.array_equal(HA, H_ref)
+
+        def area(Q):
+            return 0.5 * float(np.sum(Q[:, 0] * np.roll(Q[:, 1], -1)
+                                      - np.roll(Q[:, 0], -1) * Q[:, 1]))
+
+        e = 1e-6
+        fd = np.zeros_like(P)
+        for idx in np.ndindex(P.shape):
+            d = np.zeros_like(P)
+            d[idx] = e
+            fd[idx] = (area(P + d) - area(P - d)) / (2 * e)
+        assert np.max(np.abs(gA - fd)) < 1e-9
+
+
+def _descent_decomposing_every_iteration(strip, u0, tol=1e-10, max_iter=500):
+    """minimize_energy's trust-region loop with an eigen-decomposition at every iteration,
+    rejected steps included (the reference for the decomposition it keeps)."""
+    from elastocap.strip import solve
+
+    u = np.array(u0, dtype=float)
+    k = 10.0 * strip.B / strip.h**3
+    E, g, H = solve._penalty(strip, u, k)
+    radius = 1.0
+    for _ in range(max_iter):
+        if float(np.linalg.norm(g)) <= solve._DESCENT_GTOL:
+            break
+        lam, V = np.linalg.eigh(0.5 * (H + H.T))
+        d, pred, boundary = solve._trust_step(lam, V, g, radius)
+        E1, g1, H1 = solve._penalty(strip, u + d, k)
+        rho = (E - E1) / pred if pred > 0.0 else -1.0
+        if rho < 0.25:
+            radius *= 0.25
+        elif rho > 0.75 and boundary:
+            radius = min(2.0 * radius, 1e3)
+        if rho > 0.15:
+            u, E, g, H = u + d, E1, g1, H1
+        if radius < 1e-14:
+            break
+    return solve_equilibrium(strip, u, active=strip.heights(u) <= 1e-9, tol=tol)
+
+
+def test_descent_keeps_the_decomposition_over_rejected_steps_bit_identical(monkeypatch):
+    # a rejected trust-region step leaves H as it is: its eigen-decomposition is kept, the
+    # descent is the same bit for bit, with fewer decompositions
+    calls = {"n": 0}
+    eigh = np.linalg.eigh
+
+    def counted(a, *args, **kw):
+        calls["n"] += 1
+        return eigh(a, *args, **kw)
+
+    monkeypatch.setattr(np.linalg, "eigh", counted)
+    S = DiscreteStrip(60, L, 2.0, 0.6, 0.36, 40.0)
+    s = (np.arange(S.n) + 0.5) * S.h
+    folded = np.concatenate([[0.0], math.pi * np.clip((s - S.s1) / (S.s2 - S.s1), 0, 1)])
+    for u0 in (flat_state(S), folded):
+        calls["n"] = 0
+        eq = minimize_energy(S, u0)
+        kept = calls["n"]
+        calls["n"] = 0
+        ref = _descent_decomposing_every_iteration(S, u0)
+        assert eq.success and np.array_equal(eq.u, ref.u)
+        assert np.array_equal(eq.reactions, ref.reactions) and eq.energy == ref.energy
+        assert kept < calls["n"]
 
 
 def test_invalid_input_named():
