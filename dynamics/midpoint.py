@@ -1560,10 +1560,11 @@ def compile_stepper(effects=()):
     return module
 
 
-#: Cold compile time of a midpoint stepper, measured on 2 shared cores (about 25 s with
-#: a drop, a ground and damping): the estimate the driver announces before a first compile.
-COMPILE_BASE_S = 15.0
-COMPILE_PER_EFFECT_S = 3.0
+#: Compile time of a new midpoint stepper, the estimate the driver announces before a
+#: first compile: measured (benchmarks/compile_speed.py, CPU, 2 shared cores) 6.8 s bending
+#: only and 14.9 s with fig3-strip's four effects when the package's kernels are cached.
+COMPILE_BASE_S = 10.0
+COMPILE_PER_EFFECT_S = 2.0
 
 
 class Run:

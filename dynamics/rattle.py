@@ -439,10 +439,12 @@ def compile_stepper(effects=()):
     return _MODULES[key]
 
 
-#: Cold compile time of a RATTLE stepper, measured on 2 shared cores (bending only 7 s, one
-#: effect more ~3 s each): the estimate the driver announces before a first compile.
-COMPILE_BASE_S = 7.0
-COMPILE_PER_EFFECT_S = 3.0
+#: Compile time of a new RATTLE stepper, the estimate the driver announces before a first
+#: compile: measured (benchmarks/compile_speed.py, CPU, 2 shared cores) 4.6 s bending only
+#: and 5.6 s with four effects when the package's kernels are cached, about 12 s with four
+#: effects when they are compiled too (a fresh install).
+COMPILE_BASE_S = 5.0
+COMPILE_PER_EFFECT_S = 2.0
 
 
 class Run:
