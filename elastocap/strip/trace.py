@@ -1090,8 +1090,20 @@ def _fold_list(strip: DiscreteStrip, branches, labels) -> list:
 
 
 def _event_list(branches, labels) -> list:
-    return [{"delta": float(sp.p), "kind": sp.name, "node": sp.data["node"], "branch": lab}
+    return [{"delta": float(sp.p), "kind": sp.name, "node": sp.data["node"], "branch": lab,
+             "value": sp.data.get("value")}
             for br, lab in zip(branches, labels, strict=True) for sp in br.points("event")]
+
+
+def _event_residuals(events) -> dict:
+    """Largest |reaction| (force) and |gap| (length) at the located lift-off and
+    touch-down events: how exactly the contact set changes where it is said to."""
+    out = {}
+    for key, kinds in (("reaction", ("lift_off",)), ("gap", ("touch_down",))):
+        vals = [abs(e["value"]) for e in events if e["kind"] in kinds
+                and e.get("value") is not None]
+        out[key] = max(vals) if vals else None
+    return out
 
 
 def _kind_changes(strip: DiscreteStrip, branches, labels) -> list:
@@ -1339,7 +1351,7 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         else [],
         "search": a["search"].to_dict(),
         "continuation": dict(DEFAULTS),
-        "contact_event_tol": "reaction or gap at a located event below 1e-13 (force, length)",
+        "contact_event_residual": _event_residuals(a["events"]),
         "version": __version__,
         "wall_time_s": time.perf_counter() - t0,
     }

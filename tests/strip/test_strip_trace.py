@@ -142,6 +142,18 @@ def test_save_load_round_trip(x3, tmp_path):
     assert (tmp_path / "again.png").stat().st_size > 1000
 
 
+def test_metadata_reports_the_measured_residual_at_the_events(x3):
+    # the largest |reaction| at a lift-off and |gap| at a touch-down over the located
+    # events, recomputed from the events themselves
+    ev = x3.results["events"]
+    res = x3.metadata["contact_event_residual"]
+    for key, kind in (("reaction", "lift_off"), ("gap", "touch_down")):
+        vals = [abs(e["value"]) for e in ev if e["kind"] == kind]
+        assert vals, kind
+        assert res[key] == max(vals)
+        assert res[key] < 1e-8, (key, res[key])
+
+
 def test_branches_json_has_numbers_or_null(x3, tmp_path):
     # JSON numbers are numbers or null (no "nan" strings, no NaN literals)
     x3.save(tmp_path)
