@@ -107,8 +107,24 @@ def main():
             vals = [float(v) if v is not None else math.nan for v in vals]
             p, err = observed_order(a.n, vals)
             ws = sp.we_sqrt(vals[-1]) if math.isfinite(vals[-1]) else math.nan
-            print(f"| {x:g} | {key} | " + " | ".join(f"{v:.4f}" for v in vals)
+            hows = [_short(runs[n][key]) for n in a.n]
+            print(f"| {x:g} | {key} | " + " | ".join(f"{v:.4f} {h}" for v, h in
+                                                     zip(vals, hows, strict=True))
                   + f" | {p:.2f} | {err:.1e} | {ws:.2f} |")
+    print("\nHow each value ends: sf smooth fold, cf contact fold (cf= stable on both "
+          "sides: the branch turns back at an active-set event), kc kind change, sl "
+          "stability lost, ia inadmissible, tp turning point not located, rg the range's "
+          "end, be the branch ended otherwise.")
+
+
+def _short(end):
+    """A short tag of how an end was found (table cells)."""
+    how = str(end.get("how") or "")
+    tag = {"smooth fold": "sf", "smooth_fold": "sf", "contact fold": "cf",
+           "contact_fold": "cf", "kind change": "kc", "kind_change": "kc",
+           "stability lost": "sl", "inadmissible": "ia", "range": "rg",
+           "turning point (not located)": "tp"}.get(how, "be")
+    return tag + ("=" if end.get("stable_both_sides") else "")
 
 
 if __name__ == "__main__":

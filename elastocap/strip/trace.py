@@ -1197,10 +1197,20 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
     d_all = br.p[s0:]
     if not ok[0]:
         return {"value": None, "how": "deposition not a stable open state", "label": labels[k]}
+    # the stretch a spreading follows: stable open points while Delta does not decrease
+    # (where it turns back, the state stops existing: a fold, smooth or at an event)
+    turn = np.flatnonzero(np.diff(d_all) < 0.0)
     stop = int(np.argmin(ok)) if not ok.all() else ok.size
+    turned = turn.size > 0 and turn[0] + 1 <= stop
+    if turned:
+        stop = int(turn[0]) + 1
     end = float(d_all[:stop].max())
-    if stop == ok.size:
-        how = "range"
+    change = None
+    if turned:
+        how = "turning point (not located)"
+    elif stop == ok.size:
+        how = "range" if br.metadata.get("end_status", ["", ""])[1] == "parameter_bound" \
+            else f"branch end ({br.metadata.get('end_status', ['', '?'])[1]})"
     elif br.stability[s0 + stop] != 0:
         how = "stability lost"
     elif o["encapsulated"][s0 + stop] == 1.0:
@@ -1210,14 +1220,22 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
     # the located special point between the last stable open point and the next one
     if stop < ok.size:
         a, b = sorted((end, float(d_all[stop])))
+        if turned:  # the fold lies beyond both points around the turn, nearest to one
+            a, b = end, math.inf
         for f in folds:
             if f["branch"] == labels[k] and f["index"] >= s0 and \
-                    a - 1e-9 <= f["value"] <= b + 1e-9:
-                end, how = f["value"], f"{f['kind']} fold"
+                    a - 1e-9 <= f["value"] <= b + 1e-9 and \
+                    (not turned or s0 + stop - 1 <= f["index"] <= s0 + stop):
+                end, how, change = f["value"], f"{f['kind']} fold", f["stability_change"]
+                break
         for c in kind_changes:
             if c["branch"] == labels[k] and a - 1e-9 <= c["value"] <= b + 1e-9:
-                end, how = c["value"], "kind change"
-    return {"value": end, "how": how, "label": labels[k]}
+                end, how, change = c["value"], "kind change", None
+    # a fold whose index does not change (0 on both sides): the branch turns back at an
+    # active-set event with the open state stable on both sides; a spreading there jumps
+    # to whatever state lies beyond, which this end does not say
+    return {"value": end, "how": how, "label": labels[k], "stability_change": change,
+            "stable_both_sides": bool(change is not None and list(change) == [0, 0])}
 
 
 def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
@@ -1368,9 +1386,14 @@ def open_branch_end(bs: BranchSet) -> dict:
 
     The branch traced up in Delta from the deposition at the lowest seed: the largest Delta
     of its leading stretch of stable, open, admissible states (``value``, length), and
-    ``how`` it ends: a ``contact fold`` or ``smooth fold`` (located), a ``kind change``
-    (the verdict flips on a stable stretch, located), ``stability lost`` or
-    ``inadmissible`` at a traced point, ``range`` (the stretch reaches the range's end).
+    ``how`` it ends: a ``contact fold`` or ``smooth fold`` (located; Delta turns back
+    there), a ``kind change`` (the verdict flips on a stable stretch, located), ``stability
+    lost`` or ``inadmissible`` at a traced point, ``turning point (not located)``,
+    ``range`` (the stretch reaches the range's end) or ``branch end (STATUS)`` (the branch
+    ended otherwise, e.g. the contact lines met). ``stability_change`` is the located
+    fold's index on its two sides; ``stable_both_sides`` flags a fold at an active-set
+    event with the open state stable on both sides (the branch turns back with no change
+    of stability, so where a spreading goes beyond it is not decided by this branch).
     ``value`` is None when there is no such branch (``how`` says why).
     """
     return _open_end(bs.branches, bs.labels, bs.folds, bs.results.get("kind_changes", []))

@@ -412,3 +412,48 @@ def test_bad_input_is_rejected_by_message():
     eq = solve_equilibrium(S, np.zeros(S.size), max_iter=1)
     with pytest.raises(ValueError, match="state: got status"):
         trace_discrete_branch(S, eq, (1.0, 1.2))
+
+
+def _fake_branch(p, stability, end_status="parameter_bound"):
+    from types import SimpleNamespace
+
+    p = np.asarray(p, float)
+    obs = {"encapsulated": np.zeros(p.size), "admissible": np.ones(p.size)}
+    return SimpleNamespace(p=p, stability=np.asarray(stability), observables=obs,
+                           metadata={"start_index": 0,
+                                     "end_status": ["parameter_bound", end_status]})
+
+
+@pytest.mark.parametrize("change", [[0, 0], [0, 1]])
+def test_open_branch_end_where_the_branch_turns_back(change):
+    # Delta rises to 0.7, turns back at a located contact fold and falls, stable and open
+    # throughout (or unstable past the fold): the end is the fold, not the traced maximum,
+    # and a fold stable on both sides is flagged
+    from types import SimpleNamespace
+
+    p = [0.6, 0.65, 0.699, 0.69, 0.6, 0.5]
+    stab = [0, 0, 0, change[1], change[1], change[1]]
+    fold = {"branch": "deposition at Delta = 0.6", "index": 2, "value": 0.7,
+            "kind": "contact", "stability_change": change}
+    bs = SimpleNamespace(branches=[_fake_branch(p, stab)],
+                         labels=["deposition at Delta = 0.6"], folds=[fold],
+                         results={"kind_changes": []})
+    end = open_branch_end(bs)
+    assert end["value"] == 0.7 and end["how"] == "contact fold"
+    assert end["stable_both_sides"] is (change == [0, 0])
+    # without the located fold: the turning point is said to be unlocated
+    bs.folds = []
+    end = open_branch_end(bs)
+    assert end["value"] == 0.699 and end["how"] == "turning point (not located)"
+
+
+@pytest.mark.parametrize("status,how", [("parameter_bound", "range"),
+                                        ("contact_lines_meet", "branch end (contact_lines_meet)")])
+def test_open_branch_end_at_the_end_of_the_branch(status, how):
+    from types import SimpleNamespace
+
+    bs = SimpleNamespace(branches=[_fake_branch([0.6, 0.8, 1.0], [0, 0, 0], status)],
+                         labels=["deposition at Delta = 0.6"], folds=[],
+                         results={"kind_changes": []})
+    end = open_branch_end(bs)
+    assert end["value"] == 1.0 and end["how"] == how and not end["stable_both_sides"]
