@@ -1220,12 +1220,16 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
     # the located special point between the last stable open point and the next one
     if stop < ok.size:
         a, b = sorted((end, float(d_all[stop])))
-        if turned:  # the fold lies beyond both points around the turn, nearest to one
+        # where Delta turns back, the fold lies at or beyond the highest traced point, its
+        # index between the first point at that height (several segments may meet at one
+        # Delta) and the first point past the turn
+        first = s0 + int(np.argmax(d_all[:stop]))
+        if turned:
             a, b = end, math.inf
         for f in folds:
             if f["branch"] == labels[k] and f["index"] >= s0 and \
                     a - 1e-9 <= f["value"] <= b + 1e-9 and \
-                    (not turned or s0 + stop - 1 <= f["index"] <= s0 + stop):
+                    (not turned or first - 1 <= f["index"] <= s0 + stop):
                 end, how, change = f["value"], f"{f['kind']} fold", f["stability_change"]
                 break
         for c in kind_changes:
