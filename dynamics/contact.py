@@ -199,7 +199,7 @@ ContactWork = collections.namedtuple("ContactWork", [
     "active",     # (K,) int64 the active pairs (indices into pairs)
     "mu_pos",     # (K,) their position multipliers
     "mu_vel",     # (K,) the velocity stage's multipliers
-    "Y",          # (K, m) one tridiagonal solve per contact (Schur complement)
+    "Y",          # (m K,) the tridiagonal solves of the contacts' columns, (m, na)
     "S",          # (K, K) the contacts' capacitance matrix
     "vec",        # (13, max(m, K) + 2) vectors
     "grid",       # (H + n,) int64 hashed grid: bucket heads, then next node
@@ -233,7 +233,7 @@ def new_contact_work(edge_len):
     return ContactWork(
         np.zeros(10, dtype=np.int64), np.zeros(5), np.zeros((n, 2)), s_arc,
         np.zeros((P, 2), dtype=np.int64), np.zeros((P, 4)),
-        np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros((K, m)),
+        np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros(m * K),
         np.zeros((K, K)), np.zeros((13, max(m, K) + 2)), np.zeros(H + n, dtype=np.int64),
         np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2)), np.zeros((3, n, 2)),
         np.zeros(K, dtype=np.int64), np.zeros(P, dtype=np.int64),
@@ -458,7 +458,6 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     """
     m = R.shape[0]
     vec = ck.vec
-    Y = ck.Y
     S = ck.S
     piv = ck.piv
     a = vec[0]
@@ -467,7 +466,6 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     cp = vec[3]
     gi = vec[4]
     z = vec[5]
-    col = vec[6]
     skip = vec[7]
     # tridiagonal rows
     for e in range(m):
@@ -506,9 +504,17 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
         for e in range(m):
             dl[e] = z[e]
         return True
-    # Y[k] = T^-1 B[:, k] (B: the edge rows' response to contact k's impulse)
+    # Y = T^-1 B (B: the edge rows' response to the contacts' impulses, one column per
+    # contact), all columns in one pass (edges outer, contacts inner: each column sees the
+    # operations of its own solve); Y is (m, na), row e the edge's entries of the columns.
+    # A column's right-hand side has at most 6 nonzero entries (the edges at the contact's
+    # three nodes); the forward sweep starts at the first nonzero row of any column (the
+    # rows above it stay zero)
+    Y = ck.Y[:m * na].reshape((m, na))
     for e in range(m):
-        col[e] = 0.0
+        for k in range(na):
+            Y[e, k] = 0.0
+    e0 = m
     for k in range(na):
         i = ci[k, 0]
         j = ci[k, 1]
@@ -521,22 +527,27 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
             px = w[q, 0] * wq * nx
             pz = w[q, 1] * wq * nz
             if q - 1 >= 0:
-                col[q - 1] += f * (R[q - 1, 0] * px + R[q - 1, 1] * pz)
+                Y[q - 1, k] += f * (R[q - 1, 0] * px + R[q - 1, 1] * pz)
+                e0 = q - 1 if q - 1 < e0 else e0
             if q < m:
-                col[q] -= f * (R[q, 0] * px + R[q, 1] * pz)
-        yk = Y[k]
-        for e in range(m):
-            r = 0.0 if skip[e] != 0.0 else col[e]
-            yk[e] = (r - (a[e] * yk[e - 1] if e > 0 else 0.0)) * gi[e]
-        for e in range(m - 2, -1, -1):
-            yk[e] -= cp[e] * yk[e + 1]
-        # clear the column's entries
-        for t in range(3):
-            q = i if t == 0 else (j if t == 1 else j + 1)
-            if q - 1 >= 0:
-                col[q - 1] = 0.0
-            if q < m:
-                col[q] = 0.0
+                Y[q, k] -= f * (R[q, 0] * px + R[q, 1] * pz)
+                e0 = q if q < e0 else e0
+    for e in range(e0, m):
+        ae = a[e]
+        ge = gi[e]
+        if skip[e] != 0.0:
+            for k in range(na):
+                Y[e, k] = (0.0 - (ae * Y[e - 1, k] if e > 0 else 0.0)) * ge
+        elif e > 0:
+            for k in range(na):
+                Y[e, k] = (Y[e, k] - ae * Y[e - 1, k]) * ge
+        else:
+            for k in range(na):
+                Y[e, k] = (Y[e, k] - 0.0) * ge
+    for e in range(m - 2, -1, -1):
+        ce = cp[e]
+        for k in range(na):
+            Y[e, k] -= ce * Y[e + 1, k]
     # Schur complement S = C W C^T - B2 Y, rhs = rhs_c - B2 z
     smax = 0.0
     for k in range(na):
@@ -574,7 +585,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
                 if coef != 0.0:
                     rk -= coef * z[e]
                     for l in range(na):
-                        S[k, l] -= coef * Y[l, e]
+                        S[k, l] -= coef * Y[e, l]
         dm[k] = rk
     if lcp:
         # the contacts' linear complementarity problem in the total multipliers
@@ -626,7 +637,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     for e in range(m):
         s = z[e]
         for k in range(na):
-            s -= Y[k, e] * dm[k]
+            s -= Y[e, k] * dm[k]
         dl[e] = s
     return True
 
