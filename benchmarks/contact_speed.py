@@ -215,13 +215,14 @@ def sustained_against(against, repeat):
         label = f"fig3-strip x={ov['drop.distance_from_end']:g}"
         last = {t: (res[t][-1][k], res[t][-1][k + 1]) for t in trees}
         same = all(last[sha][i]["frames"] == last["tree"][i]["frames"] for i in (0, 1))
-        nc = last["tree"][1]["contact_steps"]
-        line = [f"{label:16s} steps {last['tree'][1]['runs'][0]['steps']}, contact steps {nc}:"]
+        line = [f"{label:16s} steps {last['tree'][1]['runs'][0]['steps']}:"]
         for t in trees:
             off, on = med[t][k], med[t][k + 1]
+            nc = last[t][1]["contact_steps"]
             extra = (on - off) / nc * 1e6 if nc else float("nan")
             line.append(f"{t}: without {off:.3f} s, with {on:.3f} s, ratio {on / off:.2f}, "
-                        f"{extra:.1f} us more per contact step;")
+                        f"{nc} contact steps, {extra:.1f} us more each, outcome "
+                        f"{last[t][1]['outcome']};")
         line.append(f"with: tree/{sha} {med['tree'][k + 1] / med[sha][k + 1]:.3f}; same frames "
                     f"{same}")
         print(" ".join(line))
