@@ -118,6 +118,9 @@ VELOCITY_REFINEMENTS = 3
 #: Sweeps of projected Gauss-Seidel on the contacts' complementarity problem.
 PGS_MAX_SWEEPS = 2000
 
+#: Solves of the block pivoting that finds the start of projected Gauss-Seidel.
+GUESS_PIVOTS = 4
+
 # rows of meta (int64)
 _NPAIRS, _VALID, _REBUILDS, _NACT, _MAXACT, _STEPS, _ROUNDS, _FAIL, _FORCES, _NVEL = range(10)
 # rows of stat (float64)
@@ -201,15 +204,18 @@ ContactWork = collections.namedtuple("ContactWork", [
     "mu_vel",     # (K,) the velocity stage's multipliers
     "Y",          # (m K,) the tridiagonal solves of the contacts' columns, (m, na)
     "S",          # (K, K) the contacts' capacitance matrix
-    "vec",        # (13, max(m, K) + 2) vectors
+    "SA",         # (K, K) its rows and columns of the guessed active set, factorised
+    "vec",        # (14, max(m, K) + 2) vectors
     "grid",       # (H + n,) int64 hashed grid: bucket heads, then next node
     "cell",       # (n, 2) int64 grid cell of every node
     "forces",     # (n, 2) the contact forces of the last step
     "scratch",    # (3, n, 2) scratch node arrays
     "piv",        # (K,) int64 pivots
     "mark",       # (P,) int64 per-pair marks (-1 redundant, 0 free, 1 active)
+    "pushed",     # (P,) int64 per-pair: 1 if it pushed at the last position stage
     "rows",       # (3, K, 2) int64 (node, segment) of the contact rows being solved
-    "flags",      # (4, K) int64 equality flags of those rows
+    "flags",      # (4, K) int64 equality flags of those rows (0, 1), guessed pushing (2)
+    "guess",      # (2, K) int64 the guessed set (membership, map) of the first solve
     "normals",    # (3, K, 2) their normals
     "weights",    # (3, K) their weights u
     "edges",      # (2, m, 2) edge vectors (current, old)
@@ -234,10 +240,12 @@ def new_contact_work(edge_len):
         np.zeros(10, dtype=np.int64), np.zeros(5), np.zeros((n, 2)), s_arc,
         np.zeros((P, 2), dtype=np.int64), np.zeros((P, 4)),
         np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros(m * K),
-        np.zeros((K, K)), np.zeros((13, max(m, K) + 2)), np.zeros(H + n, dtype=np.int64),
-        np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2)), np.zeros((3, n, 2)),
-        np.zeros(K, dtype=np.int64), np.zeros(P, dtype=np.int64),
+        np.zeros((K, K)), np.zeros((K, K)), np.zeros((14, max(m, K) + 2)),
+        np.zeros(H + n, dtype=np.int64), np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2)),
+        np.zeros((3, n, 2)), np.zeros(K, dtype=np.int64), np.zeros(P, dtype=np.int64),
+        np.zeros(P, dtype=np.int64),
         np.zeros((3, K, 2), dtype=np.int64), np.zeros((4, K), dtype=np.int64),
+        np.zeros((2, K), dtype=np.int64),
         np.zeros((3, K, 2)), np.zeros((3, K)), np.zeros((2, m, 2)))
 
 
@@ -448,13 +456,18 @@ def _lu_solve(S, b, piv, na):
 
 @numba.njit(cache=True)
 def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, mu0, eq,
-                    pgs_tol):
+                    hint, pgs_tol):
     """Solve the edge rows (tridiagonal) bordered by ``na`` contact rows.
 
     Edge row e: ``f R_e . (dq_{e+1} - dq_e) = rhs_e[e]``, contact row k:
     ``n_k . (dq_i - (1-u) dq_j - u dq_{j+1}) = rhs_c[k]``, with
     ``dq = W (G_O^T dl + C^T dm)`` (``G_O`` the edge directions ``O``).  Rows of edges
     with both ends held are identities (``dl = 0``).  Returns False if a pivot vanished.
+
+    ``lcp``: the contact rows are complementarity conditions on the total multipliers
+    ``mu0 + dm`` (equalities where ``eq``), solved by projected Gauss-Seidel started from
+    the solution of the equations of a guessed set of pushing contacts (``mu0 > 0``, ``eq``
+    or ``hint``) when that solution pushes, else from ``mu0``.
     """
     m = R.shape[0]
     vec = ck.vec
@@ -608,6 +621,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
         # to the tolerance, or a millionth of that residual: the Newton iteration around
         # this solve refines what is left
         tol = max(pgs_tol, 1e-6 * qmax)
+        _lcp_guess(S, q, dm, na, mu0, eq, hint, REGULARISATION * smax, tol, ck)
         for _sweep in range(PGS_MAX_SWEEPS):
             ch = 0.0
             for k in range(na):
@@ -640,6 +654,70 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
             s -= Y[e, k] * dm[k]
         dl[e] = s
     return True
+
+
+@numba.njit(cache=True)
+def _lcp_guess(S, q, nu, na, mu0, eq, hint, shift, tol, ck):
+    """The start of projected Gauss-Seidel on ``w = S nu + q >= 0, nu >= 0``
+    (complementary; equalities where ``eq``), by block pivoting from a guessed pushing set
+    ``A`` (``mu0 > 0``, ``eq`` or ``hint``): ``nu_A`` solves ``S_AA nu_A = -q_A`` (LU,
+    the diagonal shifted by ``shift`` as the iteration's is), 0 elsewhere; the inequality
+    rows of ``A`` with ``nu < 0`` leave it, the rows outside with ``w < -tol`` join it,
+    and the solve is repeated, at most :data:`GUESS_PIVOTS` times.  When a solve changes
+    nothing (the contacts that pushed in the previous iteration or step push again, or the
+    pivots found the set) ``nu`` is set and the iteration's first sweep finds it
+    converged; else ``nu`` is left as it came (``mu0``).  Returns whether ``nu`` was set."""
+    SA = ck.SA
+    inA = ck.guess[0]
+    amap = ck.guess[1]
+    b = ck.vec[13]
+    piv = ck.piv
+    for k in range(na):
+        inA[k] = 1 if (mu0[k] > 0.0 or eq[k] != 0 or hint[k] != 0) else 0
+    for _pivot in range(GUESS_PIVOTS):
+        nA = 0
+        for k in range(na):
+            if inA[k] != 0:
+                amap[nA] = k
+                nA += 1
+        if nA == 0:
+            return False
+        for r in range(nA):
+            k = amap[r]
+            for c in range(nA):
+                SA[r, c] = S[k, amap[c]]
+            SA[r, r] += shift
+            b[r] = -q[k]
+        if not _lu_solve(SA, b, piv, nA):
+            return False
+        changed = False
+        for r in range(nA):
+            if not np.isfinite(b[r]):
+                return False
+            # an inequality row leaves when it pulls or when its push is below what the
+            # iteration resolves (nu S_kk <= tol: a contact that holds nothing)
+            k = amap[r]
+            if eq[k] == 0 and b[r] * (S[k, k] + shift) <= tol:
+                inA[k] = 0
+                changed = True
+        if changed:
+            continue
+        for k in range(na):
+            if inA[k] == 0:
+                wk = q[k]
+                for r in range(nA):
+                    wk += S[k, amap[r]] * b[r]
+                if wk < -tol:
+                    inA[k] = 1
+                    changed = True
+        if changed:
+            continue
+        for k in range(na):
+            nu[k] = 0.0
+        for r in range(nA):
+            nu[amap[r]] = b[r]
+        return True
+    return False
 
 
 @numba.njit(cache=True)
@@ -686,6 +764,7 @@ def _activate(ck, eq, p, na, K):
     ck.active[na] = p
     ck.mu_pos[na] = 0.0
     eq[na] = 0
+    ck.flags[2, na] = ck.pushed[p]
     ck.mark[p] = 1
     return na + 1
 
@@ -835,6 +914,9 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
         ck.pair_geom[p, 2] = nz
         g = _gap(x, i, j, u, nx, nz, thickness)
         ck.pair_geom[p, 3] = g
+        # the pairs that pushed at the end of the last step (the list unchanged since):
+        # the guess of the complementarity problem's first solve
+        ck.pushed[p] = 1 if (ok and ck.mark[p] == 1) else 0
         ck.mark[p] = -1 if _redundant(ck.pairs, npairs, p, u, u_prev) else 0
         u_prev = u
         if ck.mark[p] == 0:
@@ -916,9 +998,12 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
                 break
             g_prev = err_g
             if not _bordered_solve(R, O, w, 2.0, phi, na, ci, cu, cn, rc, ck, dl, dm, True,
-                                   ck.mu_pos, eq, 0.1 * tol_g):
+                                   ck.mu_pos, eq, ck.flags[2], 0.1 * tol_g):
                 ck.meta[_FAIL] = 3
                 return -1
+            # later solves guess from the multipliers (mu_pos > 0)
+            for k in range(na):
+                ck.flags[2, k] = 0
             _apply(x, w, O, dl, na, ci, cu, cn, dm, 1.0)
             for e in range(m):
                 lam[e + 1] += dl[e]
@@ -1049,6 +1134,8 @@ def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates
             cn[nc, 0] = qx / dd
             cn[nc, 1] = qz / dd
             eq[nc] = 1 if (equal_active and ck.mark[p] == 1) else 0
+            # the guess of the first solve: the contacts the position stage pushed
+            ck.flags[2, nc] = 1 if ck.mark[p] == 1 else 0
             nc += 1
     if nc == 0:
         if ck.meta[_FORCES] != 0:
@@ -1105,9 +1192,11 @@ def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates
         if refinement > 0 and res <= tol_v:
             break
         if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, True, bm,
-                               eq, 0.1 * tol_v):
+                               eq, ck.flags[2], 0.1 * tol_v):
             ck.meta[_FAIL] = 3
             return -1
+        for k in range(nc):
+            ck.flags[2, k] = 0
         _apply(v, w, R, dl, nc, ci, cu, cn, dm, 1.0)
         for k in range(nc):
             bm[k] += dm[k]
