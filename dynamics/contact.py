@@ -26,19 +26,21 @@ projection::
 
 (``phi_e`` the edge lengths, ``C`` the rows of the active contacts) is solved by Newton on
 ``(lam, mu)`` with the contact rows eliminated by a Schur complement (``_bordered_solve``:
-one tridiagonal factorisation, one solve per candidate contact, the contacts' dense
-capacitance matrix), whose complementarity problem is solved by projected Gauss-Seidel;
-the candidates are the listed pairs within twice the deepest penetration, and a pair left
-out that ends violated joins them.  The velocity stage is the same with the contact rows at
-the new positions: relative normal velocity ``>= 0`` where the rod touches (restitution 0,
-frictionless), together with the edges' ``G v = 0`` (RATTLE) or with the edges' stretching
-rates left unchanged (midpoint); an M-orthogonal projection onto a convex cone, so it never
-adds kinetic energy.  The contact forces are pairwise and opposite (node against the two
-nodes of the segment, weights ``1, -(1 - u), -u``): momentum is conserved to round-off.
-Redundant contacts (two stacked layers touch node-on-segment both ways) make the
-capacitance matrix singular: projected Gauss-Seidel copes with that (the positions are
-unique, the split of the multipliers is not); a node closest to a vertex is held by one of
-the two segments that share it, not both.
+one tridiagonal factorisation, the candidate contacts' columns solved in one pass, the
+contacts' dense capacitance matrix), whose complementarity problem is solved by projected
+Gauss-Seidel started from a guess (``_lcp_guess``: block pivoting from the contacts that
+push in the previous iteration, or at the previous step: in sustained contact the first
+sweep finds it converged); the candidates are the listed pairs within twice the deepest
+penetration, and a pair left out that ends violated joins them. The velocity stage is the
+same with the contact rows at the new positions: relative normal velocity ``>= 0`` where
+the rod touches (restitution 0, frictionless), together with the edges' ``G v = 0``
+(RATTLE) or with the edges' stretching rates left unchanged (midpoint); an M-orthogonal
+projection onto a convex cone, so it never adds kinetic energy. The contact forces are
+pairwise and opposite (node against the two nodes of the segment, weights ``1, -(1 - u),
+-u``): momentum is conserved to round-off. Redundant contacts (two stacked layers touch
+node-on-segment both ways) make the capacitance matrix singular: projected Gauss-Seidel
+copes with that (the positions are unique, the split of the multipliers is not); a node
+closest to a vertex is held by one of the two segments that share it, not both.
 
 Broad phase
 -----------
