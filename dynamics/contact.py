@@ -664,8 +664,9 @@ def _lcp_guess(S, q, nu, na, mu0, eq, hint, shift, tol, ck):
     (complementary; equalities where ``eq``), by block pivoting from a guessed pushing set
     ``A`` (``mu0 > 0``, ``eq`` or ``hint``): ``nu_A`` solves ``S_AA nu_A = -q_A`` (LU,
     the diagonal shifted by ``shift`` as the iteration's is), 0 elsewhere; the inequality
-    rows of ``A`` with ``nu < 0`` leave it, the rows outside with ``w < -tol`` join it,
-    and the solve is repeated, at most :data:`GUESS_PIVOTS` times.  When a solve changes
+    rows of ``A`` with ``nu S_kk <= tol`` (pulling, or pushing less than the iteration
+    resolves) leave it, the rows outside with ``w < -tol`` join it, and the solve is
+    repeated, at most :data:`GUESS_PIVOTS` times.  When a solve changes
     nothing (the contacts that pushed in the previous iteration or step push again, or the
     pivots found the set) ``nu`` is set and the iteration's first sweep finds it
     converged; else ``nu`` is left as it came (``mu0``).  Returns whether ``nu`` was set."""
