@@ -482,43 +482,6 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     gi = vec[4]
     z = vec[5]
     skip = vec[7]
-    # tridiagonal rows
-    for e in range(m):
-        rx = R[e, 0]
-        rz = R[e, 1]
-        wx0 = w[e, 0]
-        wz0 = w[e, 1]
-        wx1 = w[e + 1, 0]
-        wz1 = w[e + 1, 1]
-        bb = f * (rx * (wx0 + wx1) * O[e, 0] + rz * (wz0 + wz1) * O[e, 1])
-        scale = f * (abs(rx * O[e, 0]) + abs(rz * O[e, 1])) * (wx0 + wx1 + wz0 + wz1)
-        if abs(bb) <= 1e-12 * scale or scale == 0.0:
-            a[e] = 0.0
-            b[e] = 1.0
-            c[e] = 0.0
-            skip[e] = 1.0
-        else:
-            a[e] = -f * (rx * wx0 * O[e - 1, 0] + rz * wz0 * O[e - 1, 1]) if e > 0 else 0.0
-            c[e] = -f * (rx * wx1 * O[e + 1, 0] + rz * wz1 * O[e + 1, 1]) if e < m - 1 else 0.0
-            b[e] = bb
-            skip[e] = 0.0
-    # Thomas factorisation: gi = 1 / pivot, cp = c * gi
-    for e in range(m):
-        den = b[e] - (a[e] * cp[e - 1] if e > 0 else 0.0)
-        if den == 0.0 or not np.isfinite(den):
-            return False
-        gi[e] = 1.0 / den
-        cp[e] = c[e] * gi[e]
-    # z = T^-1 rhs_e
-    for e in range(m):
-        r = 0.0 if skip[e] != 0.0 else rhs_e[e]
-        z[e] = (r - (a[e] * z[e - 1] if e > 0 else 0.0)) * gi[e]
-    for e in range(m - 2, -1, -1):
-        z[e] -= cp[e] * z[e + 1]
-    if na == 0:
-        for e in range(m):
-            dl[e] = z[e]
-        return True
     # Y = T^-1 B (B: the edge rows' response to the contacts' impulses, one column per
     # contact), all columns in one pass (edges outer, contacts inner: each column sees the
     # operations of its own solve); Y is (m, na), row e the edge's entries of the columns.
@@ -547,22 +510,56 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
             if q < m:
                 Y[q, k] -= f * (R[q, 0] * px + R[q, 1] * pz)
                 e0 = q if q < e0 else e0
-    for e in range(e0, m):
+    # one pass over the edges: the tridiagonal row, its Thomas pivot (gi = 1 / pivot,
+    # cp = c * gi), the forward sweeps of z = T^-1 rhs_e and of Y (independent chains of
+    # operations, overlapped by the processor), then the back substitutions together
+    for e in range(m):
+        rx = R[e, 0]
+        rz = R[e, 1]
+        wx0 = w[e, 0]
+        wz0 = w[e, 1]
+        wx1 = w[e + 1, 0]
+        wz1 = w[e + 1, 1]
+        bb = f * (rx * (wx0 + wx1) * O[e, 0] + rz * (wz0 + wz1) * O[e, 1])
+        scale = f * (abs(rx * O[e, 0]) + abs(rz * O[e, 1])) * (wx0 + wx1 + wz0 + wz1)
+        if abs(bb) <= 1e-12 * scale or scale == 0.0:
+            a[e] = 0.0
+            b[e] = 1.0
+            c[e] = 0.0
+            skip[e] = 1.0
+        else:
+            a[e] = -f * (rx * wx0 * O[e - 1, 0] + rz * wz0 * O[e - 1, 1]) if e > 0 else 0.0
+            c[e] = -f * (rx * wx1 * O[e + 1, 0] + rz * wz1 * O[e + 1, 1]) if e < m - 1 else 0.0
+            b[e] = bb
+            skip[e] = 0.0
+        den = b[e] - (a[e] * cp[e - 1] if e > 0 else 0.0)
+        if den == 0.0 or not np.isfinite(den):
+            return False
+        gi[e] = 1.0 / den
+        cp[e] = c[e] * gi[e]
         ae = a[e]
         ge = gi[e]
-        if skip[e] != 0.0:
-            for k in range(na):
-                Y[e, k] = (0.0 - (ae * Y[e - 1, k] if e > 0 else 0.0)) * ge
-        elif e > 0:
-            for k in range(na):
-                Y[e, k] = (Y[e, k] - ae * Y[e - 1, k]) * ge
-        else:
-            for k in range(na):
-                Y[e, k] = (Y[e, k] - 0.0) * ge
+        r = 0.0 if skip[e] != 0.0 else rhs_e[e]
+        z[e] = (r - (ae * z[e - 1] if e > 0 else 0.0)) * ge
+        if e >= e0:
+            if skip[e] != 0.0:
+                for k in range(na):
+                    Y[e, k] = (0.0 - (ae * Y[e - 1, k] if e > 0 else 0.0)) * ge
+            elif e > 0:
+                for k in range(na):
+                    Y[e, k] = (Y[e, k] - ae * Y[e - 1, k]) * ge
+            else:
+                for k in range(na):
+                    Y[e, k] = (Y[e, k] - 0.0) * ge
     for e in range(m - 2, -1, -1):
         ce = cp[e]
+        z[e] -= ce * z[e + 1]
         for k in range(na):
             Y[e, k] -= ce * Y[e + 1, k]
+    if na == 0:
+        for e in range(m):
+            dl[e] = z[e]
+        return True
     # Schur complement S = C W C^T - B2 Y, rhs = rhs_c - B2 z
     smax = 0.0
     for k in range(na):
