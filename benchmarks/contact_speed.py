@@ -12,8 +12,14 @@
    crossing?  elastocap's crossing detector (``elastocap.crossings``, the run's
    ``rod_crossing_time`` / ``interface_crossing_time``) on the run's frames, and the
    smallest node-segment distance over the frames (``dynamics.contact.segment_distances``).
+4. Sustained contact, this working tree against a revision of the contact code
+   (``--against REV``, default ``HEAD``): fig3-strip at x = 3 (and x = 2) with and without
+   ``rod.thickness``, in fresh processes alternated ``--repeat`` times, each timing one
+   warm run of every case (CPU time); medians, the with/without ratio of each tree, the
+   extra CPU time per contact step, and whether both trees give the same frames (bytes).
 
-Run: ``python benchmarks/contact_speed.py [--baseline REV|DIR] [--repeat K] [--only 1|2|3]``.
+Run: ``python benchmarks/contact_speed.py [--baseline REV|DIR] [--against REV] [--repeat K]
+[--only 1|2|3|4]``.
 The thicknesses: supp-fig5 ``0.05`` (l_ec units), fig3-strip ``0.02`` (l_eg units, a strip
 of ~70 um): choices of this benchmark, not the paper's (its model has no contact).
 """
@@ -165,6 +171,63 @@ def with_against_without(repeat):
               f"{st['self_contact_max_active']}, list rebuilds {st['self_contact_rebuilds']}")
 
 
+#: Cases of section 4: fig3-strip at x = 3 (folded on itself most of the run) and x = 2,
+#: without and with the thickness.
+SUSTAINED_CASES = tuple(("fig3-strip", dict(ov, **{"rod.thickness": th}))
+                        for ov in ({"drop.distance_from_end": 3.0},
+                                   {"drop.distance_from_end": 2.0})
+                        for th in (0.0, THICK["fig3-strip"]))
+
+#: One process of section 4: each case run once to compile / load, then timed once (CPU
+#: time), with its contact steps and a digest of its frames.
+SUSTAINED_SNIPPET = """
+import hashlib, json, sys, time
+from elastocap.impact import run_impact
+from elastocap.scene import load_scene
+import elastocap
+assert elastocap.__file__.startswith(sys.argv[1]), (elastocap.__file__, sys.argv[1])
+for name, ov in json.loads(sys.argv[2]):
+    scene = load_scene(name, ov)
+    run_impact(scene)
+    c = time.thread_time()
+    r = run_impact(scene)
+    cpu = time.thread_time() - c
+    s = r.simulation
+    h = hashlib.sha256(s.positions.tobytes() + s.velocities.tobytes()).hexdigest()
+    print(json.dumps(dict(runs=[dict(cpu=cpu, steps=r.steps)], outcome=r.outcome, frames=h,
+                          contact_steps=s.stats.get("self_contact_steps", 0))))
+"""
+
+
+def sustained_against(against, repeat):
+    """Section 4: the with/without ratio of sustained contact, the working tree against
+    revision ``against``, side by side in alternated fresh processes."""
+    sha, tree = _baseline_tree(against)
+    section(f"4. sustained contact: {sha} against the working tree (CPU s of a warm run, "
+            f"medians of {repeat} alternated processes per tree)")
+    cases = json.dumps([list(c) for c in SUSTAINED_CASES])
+    trees = {sha: tree, "tree": ROOT}
+    res = alternate_processes(trees, sha, SUSTAINED_SNIPPET, cases, 1, repeat)
+    med = {t: [float(np.median([run[k]["runs"][0]["cpu"] for run in res[t]]))
+               for k in range(len(SUSTAINED_CASES))] for t in trees}
+    for k in range(0, len(SUSTAINED_CASES), 2):
+        ov = SUSTAINED_CASES[k][1]
+        label = f"fig3-strip x={ov['drop.distance_from_end']:g}"
+        last = {t: (res[t][-1][k], res[t][-1][k + 1]) for t in trees}
+        same = all(last[sha][i]["frames"] == last["tree"][i]["frames"] for i in (0, 1))
+        line = [f"{label:16s} steps {last['tree'][1]['runs'][0]['steps']}:"]
+        for t in trees:
+            off, on = med[t][k], med[t][k + 1]
+            nc = last[t][1]["contact_steps"]
+            extra = (on - off) / nc * 1e6 if nc else float("nan")
+            line.append(f"{t}: without {off:.3f} s, with {on:.3f} s, ratio {on / off:.2f}, "
+                        f"{nc} contact steps, {extra:.1f} us more each, outcome "
+                        f"{last[t][1]['outcome']};")
+        line.append(f"with: tree/{sha} {med['tree'][k + 1] / med[sha][k + 1]:.3f}; same frames "
+                    f"{same}")
+        print(" ".join(line))
+
+
 def witness():
     section("3. supp-fig5 at Delta >= 3.8 with rod.thickness: crossings (elastocap's "
             "detector) and the closest approach")
@@ -191,8 +254,10 @@ def main():
     ap.add_argument("--baseline", default="8b8ded7",
                     help="git revision or a checkout of one (section 1; default: the last "
                          "revision before self-contact)")
+    ap.add_argument("--against", default="HEAD",
+                    help="git revision of the contact code to compare with (section 4)")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--only", type=int, choices=(1, 2, 3))
+    ap.add_argument("--only", type=int, choices=(1, 2, 3, 4))
     a = ap.parse_args()
     if a.only in (None, 1):
         contact_free_against(a.baseline, a.repeat)
@@ -200,6 +265,8 @@ def main():
         with_against_without(a.repeat)
     if a.only in (None, 3):
         witness()
+    if a.only in (None, 4):
+        sustained_against(a.against, a.repeat)
 
 
 if __name__ == "__main__":

@@ -26,19 +26,21 @@ projection::
 
 (``phi_e`` the edge lengths, ``C`` the rows of the active contacts) is solved by Newton on
 ``(lam, mu)`` with the contact rows eliminated by a Schur complement (``_bordered_solve``:
-one tridiagonal factorisation, one solve per candidate contact, the contacts' dense
-capacitance matrix), whose complementarity problem is solved by projected Gauss-Seidel;
-the candidates are the listed pairs within twice the deepest penetration, and a pair left
-out that ends violated joins them.  The velocity stage is the same with the contact rows at
-the new positions: relative normal velocity ``>= 0`` where the rod touches (restitution 0,
-frictionless), together with the edges' ``G v = 0`` (RATTLE) or with the edges' stretching
-rates left unchanged (midpoint); an M-orthogonal projection onto a convex cone, so it never
-adds kinetic energy.  The contact forces are pairwise and opposite (node against the two
-nodes of the segment, weights ``1, -(1 - u), -u``): momentum is conserved to round-off.
-Redundant contacts (two stacked layers touch node-on-segment both ways) make the
-capacitance matrix singular: projected Gauss-Seidel copes with that (the positions are
-unique, the split of the multipliers is not); a node closest to a vertex is held by one of
-the two segments that share it, not both.
+one tridiagonal factorisation, the candidate contacts' columns solved in one pass, the
+contacts' dense capacitance matrix), whose complementarity problem is solved by projected
+Gauss-Seidel started from a guess (``_lcp_guess``: block pivoting from the contacts that
+push in the previous iteration, or at the previous step: in sustained contact the first
+sweep finds it converged); the candidates are the listed pairs within twice the deepest
+penetration, and a pair left out that ends violated joins them. The velocity stage is the
+same with the contact rows at the new positions: relative normal velocity ``>= 0`` where
+the rod touches (restitution 0, frictionless), together with the edges' ``G v = 0``
+(RATTLE) or with the edges' stretching rates left unchanged (midpoint); an M-orthogonal
+projection onto a convex cone, so it never adds kinetic energy. The contact forces are
+pairwise and opposite (node against the two nodes of the segment, weights ``1, -(1 - u),
+-u``): momentum is conserved to round-off. Redundant contacts (two stacked layers touch
+node-on-segment both ways) make the capacitance matrix singular: projected Gauss-Seidel
+copes with that (the positions are unique, the split of the multipliers is not); a node
+closest to a vertex is held by one of the two segments that share it, not both.
 
 Broad phase
 -----------
@@ -117,6 +119,9 @@ VELOCITY_REFINEMENTS = 3
 
 #: Sweeps of projected Gauss-Seidel on the contacts' complementarity problem.
 PGS_MAX_SWEEPS = 2000
+
+#: Solves of the block pivoting that finds the start of projected Gauss-Seidel.
+GUESS_PIVOTS = 4
 
 # rows of meta (int64)
 _NPAIRS, _VALID, _REBUILDS, _NACT, _MAXACT, _STEPS, _ROUNDS, _FAIL, _FORCES, _NVEL = range(10)
@@ -199,17 +204,20 @@ ContactWork = collections.namedtuple("ContactWork", [
     "active",     # (K,) int64 the active pairs (indices into pairs)
     "mu_pos",     # (K,) their position multipliers
     "mu_vel",     # (K,) the velocity stage's multipliers
-    "Y",          # (K, m) one tridiagonal solve per contact (Schur complement)
+    "Y",          # (m K,) the tridiagonal solves of the contacts' columns, (m, na)
     "S",          # (K, K) the contacts' capacitance matrix
-    "vec",        # (13, max(m, K) + 2) vectors
+    "SA",         # (K, K) its rows and columns of the guessed active set, factorised
+    "vec",        # (14, max(m, K) + 2) vectors
     "grid",       # (H + n,) int64 hashed grid: bucket heads, then next node
     "cell",       # (n, 2) int64 grid cell of every node
     "forces",     # (n, 2) the contact forces of the last step
     "scratch",    # (3, n, 2) scratch node arrays
     "piv",        # (K,) int64 pivots
     "mark",       # (P,) int64 per-pair marks (-1 redundant, 0 free, 1 active)
+    "pushed",     # (P,) int64 per-pair: 1 if it pushed at the last position stage
     "rows",       # (3, K, 2) int64 (node, segment) of the contact rows being solved
-    "flags",      # (4, K) int64 equality flags of those rows
+    "flags",      # (4, K) int64 equality flags of those rows (0, 1), guessed pushing (2)
+    "guess",      # (2, K) int64 the guessed set (membership, map) of the first solve
     "normals",    # (3, K, 2) their normals
     "weights",    # (3, K) their weights u
     "edges",      # (2, m, 2) edge vectors (current, old)
@@ -233,11 +241,13 @@ def new_contact_work(edge_len):
     return ContactWork(
         np.zeros(10, dtype=np.int64), np.zeros(5), np.zeros((n, 2)), s_arc,
         np.zeros((P, 2), dtype=np.int64), np.zeros((P, 4)),
-        np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros((K, m)),
-        np.zeros((K, K)), np.zeros((13, max(m, K) + 2)), np.zeros(H + n, dtype=np.int64),
-        np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2)), np.zeros((3, n, 2)),
-        np.zeros(K, dtype=np.int64), np.zeros(P, dtype=np.int64),
+        np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros(m * K),
+        np.zeros((K, K)), np.zeros((K, K)), np.zeros((14, max(m, K) + 2)),
+        np.zeros(H + n, dtype=np.int64), np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2)),
+        np.zeros((3, n, 2)), np.zeros(K, dtype=np.int64), np.zeros(P, dtype=np.int64),
+        np.zeros(P, dtype=np.int64),
         np.zeros((3, K, 2), dtype=np.int64), np.zeros((4, K), dtype=np.int64),
+        np.zeros((2, K), dtype=np.int64),
         np.zeros((3, K, 2)), np.zeros((3, K)), np.zeros((2, m, 2)))
 
 
@@ -448,17 +458,21 @@ def _lu_solve(S, b, piv, na):
 
 @numba.njit(cache=True)
 def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, mu0, eq,
-                    pgs_tol):
+                    hint, pgs_tol):
     """Solve the edge rows (tridiagonal) bordered by ``na`` contact rows.
 
     Edge row e: ``f R_e . (dq_{e+1} - dq_e) = rhs_e[e]``, contact row k:
     ``n_k . (dq_i - (1-u) dq_j - u dq_{j+1}) = rhs_c[k]``, with
     ``dq = W (G_O^T dl + C^T dm)`` (``G_O`` the edge directions ``O``).  Rows of edges
     with both ends held are identities (``dl = 0``).  Returns False if a pivot vanished.
+
+    ``lcp``: the contact rows are complementarity conditions on the total multipliers
+    ``mu0 + dm`` (equalities where ``eq``), solved by projected Gauss-Seidel started from
+    the solution of the equations of a guessed set of pushing contacts (``mu0 > 0``, ``eq``
+    or ``hint``) when that solution pushes, else from ``mu0``.
     """
     m = R.shape[0]
     vec = ck.vec
-    Y = ck.Y
     S = ck.S
     piv = ck.piv
     a = vec[0]
@@ -467,9 +481,38 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     cp = vec[3]
     gi = vec[4]
     z = vec[5]
-    col = vec[6]
     skip = vec[7]
-    # tridiagonal rows
+    # Y = T^-1 B (B: the edge rows' response to the contacts' impulses, one column per
+    # contact), all columns in one pass (edges outer, contacts inner: each column sees the
+    # operations of its own solve); Y is (m, na), row e the edge's entries of the columns.
+    # A column's right-hand side has at most 6 nonzero entries (the edges at the contact's
+    # three nodes); the forward sweep starts at the first nonzero row of any column (the
+    # rows above it stay zero)
+    Y = ck.Y[:m * na].reshape((m, na))
+    for e in range(m):
+        for k in range(na):
+            Y[e, k] = 0.0
+    e0 = m
+    for k in range(na):
+        i = ci[k, 0]
+        j = ci[k, 1]
+        u = cu[k]
+        nx = cn[k, 0]
+        nz = cn[k, 1]
+        for t in range(3):
+            q = i if t == 0 else (j if t == 1 else j + 1)
+            wq = 1.0 if t == 0 else (-(1.0 - u) if t == 1 else -u)
+            px = w[q, 0] * wq * nx
+            pz = w[q, 1] * wq * nz
+            if q - 1 >= 0:
+                Y[q - 1, k] += f * (R[q - 1, 0] * px + R[q - 1, 1] * pz)
+                e0 = q - 1 if q - 1 < e0 else e0
+            if q < m:
+                Y[q, k] -= f * (R[q, 0] * px + R[q, 1] * pz)
+                e0 = q if q < e0 else e0
+    # one pass over the edges: the tridiagonal row, its Thomas pivot (gi = 1 / pivot,
+    # cp = c * gi), the forward sweeps of z = T^-1 rhs_e and of Y (independent chains of
+    # operations, overlapped by the processor), then the back substitutions together
     for e in range(m):
         rx = R[e, 0]
         rz = R[e, 1]
@@ -489,54 +532,34 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
             c[e] = -f * (rx * wx1 * O[e + 1, 0] + rz * wz1 * O[e + 1, 1]) if e < m - 1 else 0.0
             b[e] = bb
             skip[e] = 0.0
-    # Thomas factorisation: gi = 1 / pivot, cp = c * gi
-    for e in range(m):
         den = b[e] - (a[e] * cp[e - 1] if e > 0 else 0.0)
         if den == 0.0 or not np.isfinite(den):
             return False
         gi[e] = 1.0 / den
         cp[e] = c[e] * gi[e]
-    # z = T^-1 rhs_e
-    for e in range(m):
+        ae = a[e]
+        ge = gi[e]
         r = 0.0 if skip[e] != 0.0 else rhs_e[e]
-        z[e] = (r - (a[e] * z[e - 1] if e > 0 else 0.0)) * gi[e]
+        z[e] = (r - (ae * z[e - 1] if e > 0 else 0.0)) * ge
+        if e >= e0:
+            if skip[e] != 0.0:
+                for k in range(na):
+                    Y[e, k] = (0.0 - (ae * Y[e - 1, k] if e > 0 else 0.0)) * ge
+            elif e > 0:
+                for k in range(na):
+                    Y[e, k] = (Y[e, k] - ae * Y[e - 1, k]) * ge
+            else:
+                for k in range(na):
+                    Y[e, k] = (Y[e, k] - 0.0) * ge
     for e in range(m - 2, -1, -1):
-        z[e] -= cp[e] * z[e + 1]
+        ce = cp[e]
+        z[e] -= ce * z[e + 1]
+        for k in range(na):
+            Y[e, k] -= ce * Y[e + 1, k]
     if na == 0:
         for e in range(m):
             dl[e] = z[e]
         return True
-    # Y[k] = T^-1 B[:, k] (B: the edge rows' response to contact k's impulse)
-    for e in range(m):
-        col[e] = 0.0
-    for k in range(na):
-        i = ci[k, 0]
-        j = ci[k, 1]
-        u = cu[k]
-        nx = cn[k, 0]
-        nz = cn[k, 1]
-        for t in range(3):
-            q = i if t == 0 else (j if t == 1 else j + 1)
-            wq = 1.0 if t == 0 else (-(1.0 - u) if t == 1 else -u)
-            px = w[q, 0] * wq * nx
-            pz = w[q, 1] * wq * nz
-            if q - 1 >= 0:
-                col[q - 1] += f * (R[q - 1, 0] * px + R[q - 1, 1] * pz)
-            if q < m:
-                col[q] -= f * (R[q, 0] * px + R[q, 1] * pz)
-        yk = Y[k]
-        for e in range(m):
-            r = 0.0 if skip[e] != 0.0 else col[e]
-            yk[e] = (r - (a[e] * yk[e - 1] if e > 0 else 0.0)) * gi[e]
-        for e in range(m - 2, -1, -1):
-            yk[e] -= cp[e] * yk[e + 1]
-        # clear the column's entries
-        for t in range(3):
-            q = i if t == 0 else (j if t == 1 else j + 1)
-            if q - 1 >= 0:
-                col[q - 1] = 0.0
-            if q < m:
-                col[q] = 0.0
     # Schur complement S = C W C^T - B2 Y, rhs = rhs_c - B2 z
     smax = 0.0
     for k in range(na):
@@ -574,7 +597,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
                 if coef != 0.0:
                     rk -= coef * z[e]
                     for l in range(na):
-                        S[k, l] -= coef * Y[l, e]
+                        S[k, l] -= coef * Y[e, l]
         dm[k] = rk
     if lcp:
         # the contacts' linear complementarity problem in the total multipliers
@@ -597,6 +620,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
         # to the tolerance, or a millionth of that residual: the Newton iteration around
         # this solve refines what is left
         tol = max(pgs_tol, 1e-6 * qmax)
+        _lcp_guess(S, q, dm, na, mu0, eq, hint, REGULARISATION * smax, tol, ck)
         for _sweep in range(PGS_MAX_SWEEPS):
             ch = 0.0
             for k in range(na):
@@ -626,9 +650,74 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     for e in range(m):
         s = z[e]
         for k in range(na):
-            s -= Y[k, e] * dm[k]
+            s -= Y[e, k] * dm[k]
         dl[e] = s
     return True
+
+
+@numba.njit(cache=True)
+def _lcp_guess(S, q, nu, na, mu0, eq, hint, shift, tol, ck):
+    """The start of projected Gauss-Seidel on ``w = S nu + q >= 0, nu >= 0``
+    (complementary; equalities where ``eq``), by block pivoting from a guessed pushing set
+    ``A`` (``mu0 > 0``, ``eq`` or ``hint``): ``nu_A`` solves ``S_AA nu_A = -q_A`` (LU,
+    the diagonal shifted by ``shift`` as the iteration's is), 0 elsewhere; the inequality
+    rows of ``A`` with ``nu S_kk <= tol`` (pulling, or pushing less than the iteration
+    resolves) leave it, the rows outside with ``w < -tol`` join it, and the solve is
+    repeated, at most :data:`GUESS_PIVOTS` times.  When a solve changes
+    nothing (the contacts that pushed in the previous iteration or step push again, or the
+    pivots found the set) ``nu`` is set and the iteration's first sweep finds it
+    converged; else ``nu`` is left as it came (``mu0``).  Returns whether ``nu`` was set."""
+    SA = ck.SA
+    inA = ck.guess[0]
+    amap = ck.guess[1]
+    b = ck.vec[13]
+    piv = ck.piv
+    for k in range(na):
+        inA[k] = 1 if (mu0[k] > 0.0 or eq[k] != 0 or hint[k] != 0) else 0
+    for _pivot in range(GUESS_PIVOTS):
+        nA = 0
+        for k in range(na):
+            if inA[k] != 0:
+                amap[nA] = k
+                nA += 1
+        if nA == 0:
+            return False
+        for r in range(nA):
+            k = amap[r]
+            for c in range(nA):
+                SA[r, c] = S[k, amap[c]]
+            SA[r, r] += shift
+            b[r] = -q[k]
+        if not _lu_solve(SA, b, piv, nA):
+            return False
+        changed = False
+        for r in range(nA):
+            if not np.isfinite(b[r]):
+                return False
+            # an inequality row leaves when it pulls or when its push is below what the
+            # iteration resolves (nu S_kk <= tol: a contact that holds nothing)
+            k = amap[r]
+            if eq[k] == 0 and b[r] * (S[k, k] + shift) <= tol:
+                inA[k] = 0
+                changed = True
+        if changed:
+            continue
+        for k in range(na):
+            if inA[k] == 0:
+                wk = q[k]
+                for r in range(nA):
+                    wk += S[k, amap[r]] * b[r]
+                if wk < -tol:
+                    inA[k] = 1
+                    changed = True
+        if changed:
+            continue
+        for k in range(na):
+            nu[k] = 0.0
+        for r in range(nA):
+            nu[amap[r]] = b[r]
+        return True
+    return False
 
 
 @numba.njit(cache=True)
@@ -675,6 +764,7 @@ def _activate(ck, eq, p, na, K):
     ck.active[na] = p
     ck.mu_pos[na] = 0.0
     eq[na] = 0
+    ck.flags[2, na] = ck.pushed[p]
     ck.mark[p] = 1
     return na + 1
 
@@ -824,6 +914,9 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
         ck.pair_geom[p, 2] = nz
         g = _gap(x, i, j, u, nx, nz, thickness)
         ck.pair_geom[p, 3] = g
+        # the pairs that pushed at the end of the last step (the list unchanged since):
+        # the guess of the complementarity problem's first solve
+        ck.pushed[p] = 1 if (ok and ck.mark[p] == 1) else 0
         ck.mark[p] = -1 if _redundant(ck.pairs, npairs, p, u, u_prev) else 0
         u_prev = u
         if ck.mark[p] == 0:
@@ -905,9 +998,12 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
                 break
             g_prev = err_g
             if not _bordered_solve(R, O, w, 2.0, phi, na, ci, cu, cn, rc, ck, dl, dm, True,
-                                   ck.mu_pos, eq, 0.1 * tol_g):
+                                   ck.mu_pos, eq, ck.flags[2], 0.1 * tol_g):
                 ck.meta[_FAIL] = 3
                 return -1
+            # later solves guess from the multipliers (mu_pos > 0)
+            for k in range(na):
+                ck.flags[2, k] = 0
             _apply(x, w, O, dl, na, ci, cu, cn, dm, 1.0)
             for e in range(m):
                 lam[e + 1] += dl[e]
@@ -1038,6 +1134,8 @@ def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates
             cn[nc, 0] = qx / dd
             cn[nc, 1] = qz / dd
             eq[nc] = 1 if (equal_active and ck.mark[p] == 1) else 0
+            # the guess of the first solve: the contacts the position stage pushed
+            ck.flags[2, nc] = 1 if ck.mark[p] == 1 else 0
             nc += 1
     if nc == 0:
         if ck.meta[_FORCES] != 0:
@@ -1094,9 +1192,11 @@ def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates
         if refinement > 0 and res <= tol_v:
             break
         if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, True, bm,
-                               eq, 0.1 * tol_v):
+                               eq, ck.flags[2], 0.1 * tol_v):
             ck.meta[_FAIL] = 3
             return -1
+        for k in range(nc):
+            ck.flags[2, k] = 0
         _apply(v, w, R, dl, nc, ci, cu, cn, dm, 1.0)
         for k in range(nc):
             bm[k] += dm[k]
