@@ -34,7 +34,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 
-from dynamics_speed import _export_revision  # noqa: E402
+from dynamics_speed import export_revision  # noqa: E402
 
 #: The child's code: ``argv[1]`` the tree (checked to be the one imported), ``argv[2]``
 #: the case.
@@ -114,7 +114,7 @@ def main(argv=None):
             trees["baseline"] = os.path.abspath(args.baseline)
         else:
             tmp = tempfile.mkdtemp(prefix="compile-base-")
-            _export_revision(args.baseline, tmp)
+            export_revision(args.baseline, tmp)
             trees["baseline"] = tmp
     results = {k: [] for k in trees}
     try:

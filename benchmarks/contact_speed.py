@@ -40,7 +40,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 
-from dynamics_speed import _export_revision, alternate_processes  # noqa: E402
+from dynamics_speed import alternate_processes, export_revision  # noqa: E402
 
 #: Contact-free impacts of section 1: both methods on supp-fig5 (Delta = 2.5, 4) and
 #: fig3-strip (x = 2).
@@ -88,7 +88,7 @@ def _baseline_tree(rev):
     dest = os.path.join(tempfile.gettempdir(), f"elastocap-baseline-{sha}")
     if not os.path.isdir(os.path.join(dest, "dynamics")):
         os.makedirs(dest, exist_ok=True)
-        _export_revision(sha, dest)
+        export_revision(sha, dest)
     return sha, dest
 
 

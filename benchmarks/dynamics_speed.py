@@ -258,7 +258,7 @@ for name, ov in json.loads(sys.argv[2]):
 """
 
 
-def _export_revision(rev, dest):
+def export_revision(rev, dest):
     """Files of git revision ``rev`` of this repository into ``dest`` (no checkout, no
     change to the repository)."""
     root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
@@ -332,7 +332,7 @@ def _bench_impacts_against(repeat, baseline, inner=2):
     here = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
     cases = json.dumps([list(c) for c in IMPACT_CASES])
     with tempfile.TemporaryDirectory() as tmp:
-        _export_revision(baseline, tmp)
+        export_revision(baseline, tmp)
         trees = {baseline: tmp, "working tree": here}
         res = alternate_processes(trees, baseline, IMPACT_SNIPPET, cases, inner, repeat)
     for k, (name, ov) in enumerate(IMPACT_CASES):

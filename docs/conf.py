@@ -77,7 +77,7 @@ def _escape_bars(lines: list[str]) -> list[str]:
     """Docstrings write absolute values and norms as ``|x|``, which reStructuredText reads as
     substitution references: escape each bar outside inline literals and literal blocks."""
     out, block = [], None  # block: indent of the paragraph that opened a literal block
-    for k, line in enumerate(lines):
+    for line in lines:
         if block is not None and line.strip() and _indent(line) <= block:
             block = None
         if block is None:

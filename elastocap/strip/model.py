@@ -138,7 +138,7 @@ def shoelace_derivatives(P):
     return gA, _shoelace_hessian(npt)
 
 
-@functools.cache
+@functools.lru_cache(maxsize=8)  # npt changes along a branch: bounded (2 npt)^2 floats each
 def _shoelace_hessian(npt):
     R = np.array([[0.0, 1.0], [-1.0, 0.0]])  # d/dP_{k+1} of (1/2) J P_{k+1}, times 2
     HA = np.zeros((2 * npt, 2 * npt))

@@ -1209,8 +1209,8 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
     if turned:
         how = "turning point (not located)"
     elif stop == ok.size:
-        how = "range" if br.metadata.get("end_status", ["", ""])[1] == "parameter_bound" \
-            else f"branch end ({br.metadata.get('end_status', ['', '?'])[1]})"
+        up = br.metadata.get("end_status", ["", "?"])[1]  # how the upward direction ended
+        how = "range" if up == "parameter_bound" else f"branch end ({up})"
     elif br.stability[s0 + stop] != 0:
         how = "stability lost"
     elif o["encapsulated"][s0 + stop] == 1.0:
@@ -1224,14 +1224,14 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
         # index between the first point at that height (several segments may meet at one
         # Delta) and the first point past the turn
         first = s0 + int(np.argmax(d_all[:stop]))
-        if turned:
-            a, b = end, math.inf
+        fa, fb = (end, math.inf) if turned else (a, b)
         for f in folds:
             if f["branch"] == labels[k] and f["index"] >= s0 and \
-                    a - 1e-9 <= f["value"] <= b + 1e-9 and \
+                    fa - 1e-9 <= f["value"] <= fb + 1e-9 and \
                     (not turned or first - 1 <= f["index"] <= s0 + stop):
                 end, how, change = f["value"], f"{f['kind']} fold", f["stability_change"]
                 break
+        # a kind change lies between the last stable open point and the next one
         for c in kind_changes:
             if c["branch"] == labels[k] and a - 1e-9 <= c["value"] <= b + 1e-9:
                 end, how, change = c["value"], "kind change", None

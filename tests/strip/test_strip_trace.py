@@ -441,6 +441,10 @@ def test_open_branch_end_where_the_branch_turns_back(change):
     end = open_branch_end(bs)
     assert end["value"] == 0.7 and end["how"] == "contact fold"
     assert end["stable_both_sides"] is (change == [0, 0])
+    # a kind change elsewhere on the branch (above the turn in Delta) is not this end
+    bs.results = {"kind_changes": [{"branch": "deposition at Delta = 0.6", "value": 0.9}]}
+    assert open_branch_end(bs)["value"] == 0.7
+    bs.results = {"kind_changes": []}
     # without the located fold: the turning point is said to be unlocated
     bs.folds = []
     end = open_branch_end(bs)
