@@ -122,7 +122,8 @@ def _short(end):
     how = str(end.get("how") or "")
     tag = {"smooth fold": "sf", "smooth_fold": "sf", "contact fold": "cf",
            "contact_fold": "cf", "kind change": "kc", "kind_change": "kc",
-           "stability lost": "sl", "inadmissible": "ia", "range": "rg",
+           "stability lost": "sl", "stability_lost": "sl", "inadmissible": "ia",
+           "range": "rg",
            "turning point (not located)": "tp"}.get(how, "be")
     return tag + ("=" if end.get("stable_both_sides") else "")
 

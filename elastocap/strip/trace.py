@@ -141,7 +141,7 @@ _MAX_TURN = 1.2
 # is generic in Delta, and their determinant test costs an LU per point.
 DEFAULTS = dict(ds0=0.005, ds_min=1e-7, ds_max=0.02, max_steps=400, newton_tol=1e-9,
                  detect_branch_points=False, check_jacobian=False, max_turn=_MAX_TURN)
-# Event guard: the event value of the node switched at the start of a segment is ~0 (of
+# Event guard: the event value of the nodes switched at the start of a segment is ~0 (of
 # either sign, or exactly 0) at that point; there it is left out of the minimum, so that
 # the start neither fires the event again nor hides a sign change of another node (an
 # exact 0 at the start is no sign change for the package). A point counts as the start
@@ -149,6 +149,17 @@ DEFAULTS = dict(ds0=0.005, ds_min=1e-7, ds_max=0.02, max_steps=400, newton_tol=1
 # round-off is ~1e-13; the first step moves Delta by >~ 1e-4).
 _START_TOL = 1e-11
 _START_U = 1e-8
+# Simultaneous switches: at a located lift-off or touch-down, every other node whose
+# event value (r_k or c z_k over q h, dimensionless) is within this of 0 switches with
+# it. Where the drop's centre sits on a node or mid-edge, the discrete strip is
+# mirror-symmetric about it (the flat parts on the ground carry no moment and, on a
+# frictionless ground, no tension), and nodes lift off and touch down in mirror pairs at
+# one Delta (measured: x = 4, n = 143, nodes 80 and 126 at Delta = 0.6126721518, values
+# 1e-12 apart). Switching one of a pair leaves the other's constraint violated at the
+# restart and the tracer turned back along nearly the same states. Values of events
+# ~1e-9 in Delta apart are within this; merging them moves the later one by less than
+# the corrector's tolerance (newton_tol 1e-9) moves a point.
+_SIMULTANEOUS = 1e-8
 # A contact point within this (relative, in Delta) of a node is on it: there the side of
 # the one-sided dF/dDelta is the way the segment goes (Brent locates a kink to ~1e-12).
 _ON_KINK = 1e-11
@@ -182,6 +193,16 @@ class ActiveSetEvent:
         contact lines meet, at the located point.
     precision : float
         Arclength bracket of the location (the package's ``precision``).
+    switched : tuple of (kind, node, value)
+        Every node whose contact changes here, this one first: the nodes whose event
+        value vanishes with it (``_SIMULTANEOUS``; mirror pairs on a symmetric grid).
+        Empty for a kink and where the contact lines meet.
+    followed : tuple of int
+        The nodes the next segment switched (all of ``switched`` unless a subset is the
+        stable way on; set by the driver when it restarts here).
+    alternatives : tuple of (tuple of int, int)
+        The other valid ways on from here, (nodes switched, index at the event): branches
+        that start at this point and were not traced.
     """
 
     kind: str
@@ -191,6 +212,9 @@ class ActiveSetEvent:
     reactions: np.ndarray
     value: float
     precision: float
+    switched: tuple = ()
+    followed: tuple = ()
+    alternatives: tuple = ()
 
 
 @dataclass
@@ -457,9 +481,9 @@ def _event_function(strip, tools, guard, v0, p0):
         # last entry: the contact lines closing around the drop (ends the branch)
         stop = CHORD_STOP * st.delta
         val[N] = (st.chord(u) - stop) / stop
-        if guard is not None and abs(p - p0) <= _START_TOL and \
+        if guard and abs(p - p0) <= _START_TOL and \
                 float(np.max(np.abs(v[:N] - v0[:N]))) <= _START_U:
-            val[guard] = math.inf
+            val[list(guard)] = math.inf
         return val
 
     def g(v, p):
@@ -492,7 +516,7 @@ def _tangent(prob, v, p, orient):
 
 
 # --------------------------------------------------------------------------- driver
-def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=None):
+def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=()):
     prob, tools = active_set_problem(strip, active)
     v0 = tools["join"](u0, r0)
     p0 = float(strip.delta)
@@ -535,6 +559,7 @@ def _collect(strip, active, prob, tools, br, values):
         V.append(ev_sp.u)
         P.append(ev_sp.p)
         vals = values(ev_sp.u, ev_sp.p)
+        switched = ()
         k = int(np.argmin(np.abs(vals)))
         u, r = split(ev_sp.u)
         if ev_sp.name in ("kink_s1", "kink_s2"):
@@ -545,10 +570,15 @@ def _collect(strip, active, prob, tools, br, values):
         elif k == strip.size:
             kind, k, val = "contact_lines_meet", -1, float(cache.at(ev_sp.p).chord(u))
         else:
-            kind = "lift_off" if active[k] else "touch_down"
-            val = float(r[k]) if active[k] else float(cache.at(ev_sp.p).heights(u)[k])
+            z = cache.at(ev_sp.p).heights(u)
+            # the located node first, then any that switch with it (_SIMULTANEOUS)
+            both = [k] + [int(j) for j in np.argsort(np.abs(vals[:strip.size]))
+                          if j != k and abs(vals[j]) <= _SIMULTANEOUS]
+            switched = tuple(("lift_off", j, float(r[j])) if active[j] else
+                             ("touch_down", j, float(z[j])) for j in both)
+            kind, _k, val = switched[0]
         event = ActiveSetEvent(kind, k, float(ev_sp.p), u.copy(), r.copy(), val,
-                               float(ev_sp.precision))
+                               float(ev_sp.precision), switched)
     I = [int(i) for i in br.stability[:m]]
     if stopped:
         I.append(_index(prob, ev_sp.u, ev_sp.p))
@@ -602,6 +632,58 @@ def _status_name(br):
     return _STATUS_NAMES.get(br.status, str(br.status))
 
 
+def _restart(strip: DiscreteStrip, active, event: ActiveSetEvent):
+    """(held set, tangent, switched nodes, alternatives) of the segment that starts at
+    ``event``.
+
+    With one node at the event, it switches. With several (``event.switched``: their
+    event values vanish together), the contact set can change in several ways, as at a
+    nonsmooth bifurcation: each subset of them may switch (all subsets up to three
+    nodes; else all of them or one). A way is valid when its tangent leaves the invalid
+    side for every node of the event: a held node's reaction grows (a touched-down one,
+    or one that stays held), a free node rises (a lifted one, or one that stays free).
+    Of the valid ways the driver follows a stable one (index 0 at the event) if any,
+    switching as many nodes as possible; the other valid ways are returned as
+    ``alternatives`` ((nodes, index), not traced). When none is valid, every node
+    switches (the others' events then follow within a step or two).
+    """
+    N = strip.size
+    G = strip.constraint_jacobian(event.u)
+    nodes = [j for _kd, j, _v in event.switched]
+    if len(nodes) == 1:
+        groups = [nodes]
+    elif len(nodes) <= 3:
+        groups = [[j for b, j in enumerate(nodes) if m >> b & 1]
+                  for m in range(2 ** len(nodes) - 1, 0, -1)]
+    else:
+        groups = [nodes] + [[j] for j in nodes]
+    ways = []
+    for group in groups:
+        new = active.copy()
+        new[group] = ~new[group]
+        r0 = np.where(new, event.reactions, 0.0)
+        nprob, ntools = active_set_problem(strip, new)
+        A = ntools["A"]
+
+        def rates(t, new=new, A=A):
+            # > 0 on the valid side: d r_j (held now) or d z_j (free now), every node
+            return np.array([t[N + int(np.searchsorted(A, j))] if new[j]
+                             else G[j] @ t[:N] for j in nodes])
+
+        lead = nodes.index(group[0])
+        v0 = ntools["join"](event.u, r0)
+        tangent = _tangent(nprob, v0, strip.delta, lambda t, rates=rates, lead=lead:
+                           rates(t)[lead])
+        r = rates(tangent)
+        valid = len(nodes) == 1 or bool(np.all(r > -1e-12 * np.max(np.abs(r))))
+        index = _index(nprob, v0, strip.delta) if len(nodes) > 1 else 0
+        ways.append((tuple(group), new, tangent, valid, index))
+    valid = [w for w in ways if w[3]]
+    pick = min(valid, key=lambda w: (w[4] > 0, -len(w[0]))) if valid else ways[0]
+    alternatives = tuple((w[0], int(w[4])) for w in valid if w is not pick)
+    return pick[1], pick[2], pick[0], alternatives
+
+
 def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
                           settings: ContinuationSettings | None = None, *,
                           restart: bool = False, max_segments: int = 10) -> DiscreteBranch:
@@ -646,7 +728,7 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
         raise ValueError(f"max_segments: got {max_segments}; expected >= 1")
     active = np.array(state.active, dtype=bool)
     u0, r0 = state.u.copy(), np.where(active, state.reactions, 0.0)
-    cur, tangent, guard = strip, None, None
+    cur, tangent, guard = strip, None, ()
     segments, events, turning = [], [], []
     status, message = "max_segments", f"stopped after max_segments = {max_segments}"
     for _ in range(max_segments):
@@ -661,11 +743,11 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
         if seg.event is None:
             break
         kink = seg.event.kind == "contact_point_on_node"
-        if guard is not None and not kink and seg.event.node == guard and \
-                len(seg.delta) <= 2:
+        if guard and not kink and seg.event.node in guard and len(seg.delta) <= 2:
             status = "restart_failed"
-            message = (f"the segment restarted at Delta = {cur.delta:.12g} with node {guard} "
-                       f"switched undid the switch at its first step ({seg.event.kind}): the "
+            message = (f"the segment restarted at Delta = {cur.delta:.12g} with node(s) "
+                       f"{', '.join(str(j) for j in guard)} switched undid the switch at its "
+                       f"first step ({seg.event.kind} of node {seg.event.node}): the "
                        "active-set change is not transversal there; try a smaller ds0")
             break
         if len(segments) > 1:
@@ -685,8 +767,9 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
                        f" = {CHORD_STOP:g} Delta) at Delta = {seg.event.delta:.12g}: the "
                        "strip has wrapped the whole drop; beyond, it would cross itself")
             break
-        message = (f"{seg.event.kind} of node {seg.event.node} at Delta = "
-                   f"{seg.event.delta:.12g}")
+        message = (", ".join(f"{kd} of node {j}" for kd, j, _v in seg.event.switched)
+                   or f"{seg.event.kind} of node {seg.event.node}") + \
+            f" at Delta = {seg.event.delta:.12g}"
         if not restart:
             break
         if kink:
@@ -703,29 +786,14 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
                 return t[-1] * d_in
 
             tangent = _tangent(nprob, ntools["join"](u0, r0), cur.delta, orient)
-            guard = None
+            guard = ()
             continue
         # the next segment: updated set, from the event, away from the invalid side
-        k = seg.event.node
-        active = active.copy()
-        active[k] = not active[k]
         cur = strip.with_(delta=seg.event.delta)
-        u0, r0 = seg.event.u.copy(), seg.event.reactions.copy()
-        r0[k] = 0.0
-        nprob, ntools = active_set_problem(cur, active)
-        v0 = ntools["join"](u0, r0)
-        if active[k]:  # touch-down: the new reaction must grow
-            pos = int(np.searchsorted(ntools["A"], k))
-
-            def orient(t, pos=pos):
-                return t[strip.size + pos]
-        else:  # lift-off: the node must rise
-            Gk = cur.constraint_jacobian(u0)[k]
-
-            def orient(t, Gk=Gk):
-                return Gk @ t[:strip.size]
-        tangent = _tangent(nprob, v0, cur.delta, orient)
-        guard = k
+        active, tangent, guard, seg.event.alternatives = _restart(cur, active, seg.event)
+        seg.event.followed = guard
+        u0 = seg.event.u.copy()
+        r0 = np.where(active, seg.event.reactions, 0.0)
     if len(segments) > 1 and status != "restart_failed":
         prev, seg = segments[-2], segments[-1]
         d_in = prev.delta[-1] - prev.delta[-2] if prev.delta.size > 1 else 0.0
@@ -965,7 +1033,13 @@ def _join(problem: ContactProblem, halves) -> Branch:
         if ev is not None and ev.kind != "contact_point_on_node":
             sps.append(SpecialPoint("event", i0 if reverse else len(P) - 1, ev.delta,
                                     problem.join(ev.u, ev.reactions), ev.precision, True,
-                                    ev.kind, {"node": int(ev.node), "value": float(ev.value)}))
+                                    ev.kind, {"node": int(ev.node), "value": float(ev.value),
+                                              "switched": [[kd, int(j), float(val)] for
+                                                           kd, j, val in ev.switched
+                                                           if not ev.followed or j in ev.followed],
+                                              "not_followed": [
+                                                  {"nodes": [int(j) for j in g], "index": i}
+                                                  for g, i in ev.alternatives]}))
         for f in seg.folds:
             if f["u"] is None:
                 continue
@@ -1091,7 +1165,8 @@ def _fold_list(strip: DiscreteStrip, branches, labels) -> list:
 
 def _event_list(branches, labels) -> list:
     return [{"delta": float(sp.p), "kind": sp.name, "node": sp.data["node"], "branch": lab,
-             "value": sp.data.get("value")}
+             "value": sp.data.get("value"), "switched": sp.data.get("switched", []),
+             "not_followed": sp.data.get("not_followed", [])}
             for br, lab in zip(branches, labels, strict=True) for sp in br.points("event")]
 
 
@@ -1100,8 +1175,9 @@ def _event_residuals(events) -> dict:
     touch-down events: how exactly the contact set changes where it is said to."""
     out = {}
     for key, kinds in (("reaction", ("lift_off",)), ("gap", ("touch_down",))):
-        vals = [abs(e["value"]) for e in events if e["kind"] in kinds
-                and e.get("value") is not None]
+        vals = [abs(v) for e in events for kd, _j, v in
+                (e.get("switched") or [[e["kind"], e["node"], e.get("value")]])
+                if kd in kinds and v is not None]
         out[key] = max(vals) if vals else None
     return out
 
@@ -1152,18 +1228,32 @@ def _window(branches, folds=(), kind_changes=()) -> dict:
     A stable stretch of a branch ends at a located special point: a fold, a contact fold
     where the index changes, or a kind change (the verdict flips on a stable stretch, no
     fold); those count with the traced stable points, and ``how`` says which one gave
-    each end (``"smooth_fold"``, ``"contact_fold"``, ``"kind_change"``, or ``"range"``: a
-    traced point, the stable stretch reaching the range's end).
+    each end (``"smooth_fold"``, ``"contact_fold"``, ``"kind_change"``; for a traced
+    point, ``"stability_lost"`` or ``"inadmissible"`` when a neighbouring point on the
+    branch is unstable or crosses itself, else ``"range"``: the stable stretch reaches the
+    branch's end).
     """
     opens, encs = [], []
+
+    def traced(br, sel, pick):
+        i = int(np.flatnonzero(sel)[pick(br.p[sel])])
+        nb = [j for j in (i - 1, i + 1) if 0 <= j < br.p.size]
+        if any(br.stability[j] > 0 for j in nb):
+            how = "stability_lost"
+        elif any(br.observables["admissible"][j] != 1.0 for j in nb):
+            how = "inadmissible"
+        else:
+            how = "range"
+        return float(br.p[i]), how
+
     for br in branches:
         o = br.observables
         ok = (br.stability == 0) & (o["admissible"] == 1.0)
         enc = o["encapsulated"] == 1.0
         if np.any(ok & ~enc):
-            opens.append((float(br.p[ok & ~enc].max()), "range"))
+            opens.append(traced(br, ok & ~enc, np.argmax))
         if np.any(ok & enc):
-            encs.append((float(br.p[ok & enc].min()), "range"))
+            encs.append(traced(br, ok & enc, np.argmin))
     for f in folds:
         if f["admissible"] and f["stability_change"] and 0 in f["stability_change"]:
             (encs if f["encapsulated"] else opens).append((f["value"], f"{f['kind']}_fold"))
@@ -1172,8 +1262,9 @@ def _window(branches, folds=(), kind_changes=()) -> dict:
             opens.append((k["value"], "kind_change"))
             encs.append((k["value"], "kind_change"))
     # at a tie a located special point names the end (an event is also a traced point)
-    top = max(opens, key=lambda t: (t[0], t[1] != "range")) if opens else None
-    bot = min(encs, key=lambda t: (t[0], t[1] == "range")) if encs else None
+    located = ("smooth_fold", "contact_fold", "kind_change")
+    top = max(opens, key=lambda t: (t[0], t[1] in located)) if opens else None
+    bot = min(encs, key=lambda t: (t[0], t[1] not in located)) if encs else None
     return {
         "open_max": {"value": top[0] if top else None, "how": top[1] if top else None,
                      "error_estimate": None},
@@ -1470,6 +1561,14 @@ def report_lines(bs: BranchSet) -> list[str]:
         line += f"; at n = {nf}: {w.get('bistable_refined')}" + (
             f" (width {wr:+.2e})" if wr is not None else "")
     out.append(line)
+    splits = [e for e in bs.results.get("events", []) if e.get("not_followed")]
+    if splits:
+        out.append(f"  {len(splits)} contact events where several nodes switch together "
+                   "also start branches not traced (another subset of them switching):")
+        for e in splits:
+            ways = "; ".join(f"nodes {w['nodes']} index {w['index']}"
+                             for w in e["not_followed"])
+            out.append(f"    Delta {e['delta']:.9f} ({e['branch']}): {ways}")
     return out
 
 

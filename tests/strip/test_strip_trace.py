@@ -461,3 +461,40 @@ def test_open_branch_end_at_the_end_of_the_branch(status, how):
                          results={"kind_changes": []})
     end = open_branch_end(bs)
     assert end["value"] == 1.0 and end["how"] == how and not end["stable_both_sides"]
+
+
+def test_mirror_pairs_lift_off_together_where_the_drop_centre_is_on_a_node():
+    # n = 60 and x = L - 43 h put the drop's centre on node 43, with both ends of the
+    # lifted stretch on the flat part of the strip: the discrete problem is mirror-
+    # symmetric about node 43, and nodes 43 - j and 43 + j lift off at one Delta. The
+    # tracer switches both (switching one left the other's reaction negative at the
+    # restart: every later event was missed and the ground held the strip with
+    # negative reactions up to Delta = 1.2).
+    n, c = 60, 43
+    S = DiscreteStrip(n, L, L - c * L / n, 0.6, A, GAMMA)
+    eq = open_state(S)
+    br = trace_discrete_branch(S, eq, (0.4, 1.2),
+                               ContinuationSettings(**{**DEFAULTS, "max_steps": 2000}),
+                               restart=True, max_segments=20)
+    assert br.status == "parameter_bound", br.message
+    pairs = [sorted(j for _kd, j, _v in e.switched) for e in br.events]
+    # measured: (33, 53), (32, 54), (31, 55), (30, 56), (29, 57), (28, 58)
+    assert len(pairs) >= 5
+    for (kd, _j, v), p in zip((e.switched[0] for e in br.events), pairs, strict=True):
+        assert kd == "lift_off" and len(p) == 2 and p[0] + p[1] == 2 * c, p
+        assert abs(v) < 1e-10  # reaction at the located event (force; measured < 1e-12)
+    # every traced point is a contact equilibrium: held reactions >= 0, free nodes above
+    # the ground (force, length; round-off ~1e-12), and mirror-symmetric about node 43
+    j = np.arange(1, n - c + 1)
+    for seg in br.segments:
+        for d, u, r in zip(seg.delta, seg.u, seg.reactions, strict=True):
+            z = S.with_(delta=d).heights(u)
+            assert np.min(r[seg.active]) > -1e-9 and np.min(z) > -1e-10, d
+            assert np.max(np.abs(z[c + j] - z[c - j])) < 1e-9, d
+    # independent: descent from the flat strip (open_state, which sets its own contact
+    # set) lands on the traced states between the events (measured agreement ~1e-12)
+    for seg in br.segments[1:4]:
+        d = float(seg.delta[seg.delta.size // 2])
+        e = open_state(S.with_(delta=d))
+        assert e.success and np.array_equal(e.active, seg.active), d
+        assert np.max(np.abs(e.u - seg.u[seg.delta.size // 2])) < 1e-8, d
