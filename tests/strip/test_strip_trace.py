@@ -19,7 +19,7 @@ from elastocap.cli import main
 from elastocap.scene import SceneError, load_scene
 from elastocap.strip.barrier import barrier, barrier_graph, lowest_barriers
 from elastocap.strip.model import DiscreteStrip, discrete_strip_for, is_encapsulated
-from elastocap.strip.solve import open_state, solve_equilibrium, wrapped_state
+from elastocap.strip.solve import minimize_energy, open_state, solve_equilibrium, wrapped_state
 from elastocap.strip.trace import (
     CHORD_STOP,
     DEFAULTS,
@@ -498,3 +498,40 @@ def test_mirror_pairs_lift_off_together_where_the_drop_centre_is_on_a_node():
         e = open_state(S.with_(delta=d))
         assert e.success and np.array_equal(e.active, seg.active), d
         assert np.max(np.abs(e.u - seg.u[seg.delta.size // 2])) < 1e-8, d
+
+
+def test_symmetric_open_state_loses_stability_to_an_antisymmetric_mode():
+    # The drop mid-strip on a grid with its centre on node 30 (n = 60): the open state is
+    # mirror-symmetric and its index goes 0 -> 1 with Delta rising, no fold. The search
+    # marks it as an unlocated branch point whose kernel is the unstable mode. Checked
+    # by descent (minimize_energy), independent of the continuation's index: 0.02 below
+    # the point, the state pushed along the mode comes back to the symmetric state; 0.02
+    # above, it goes to an asymmetric stable state of lower energy (measured: 46.66169
+    # against 46.66670, heights 0.53 off their mirror image).
+    n, c = 60, 30
+    x = L - c * L / n
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": x, "numerics.n_edges": n})
+    bs = trace_contact_branches(sc, prange=(1.0, 1.5), refine=False)
+    bps = [sp for br in bs.branches for sp in br.special_points
+           if sp.kind == "branch_point" and sp.data["stability"] == [0, 1]]
+    assert bps
+    sp = bps[0]
+    assert abs(sp.p - 1.2277967) < 1e-6 and not sp.located
+    S = DiscreteStrip(n, L, x, sp.p, A, GAMMA)
+    u, k = sp.u[: n + 1], sp.data["kernel"][: n + 1]
+    j = np.arange(1, c + 1)
+    dz = S.constraint_jacobian(u) @ k
+    # the mode is antisymmetric in the heights (symmetric part at round-off)
+    assert np.linalg.norm(dz[c + j] + dz[c - j]) < 1e-9 * np.linalg.norm(dz[c + j] - dz[c - j])
+    push = 0.05 * k / np.max(np.abs(k))
+    below = S.with_(delta=sp.p - 0.02)
+    for sg in (1.0, -1.0):
+        e = minimize_energy(below, u + sg * push)
+        z = below.heights(e.u)
+        assert e.success and e.index == 0 and np.max(np.abs(z[c + j] - z[c - j])) < 1e-9
+    above = S.with_(delta=sp.p + 0.02)
+    sym, asym = minimize_energy(above, u), minimize_energy(above, u + push)
+    assert sym.success and sym.index == 1
+    z = above.heights(asym.u)
+    assert asym.success and asym.index == 0 and np.max(np.abs(z[c + j] - z[c - j])) > 0.1
+    assert asym.energy < sym.energy - 1e-3
