@@ -9,11 +9,8 @@ For each x and n, every branch in Delta over [0.5, min(2.2, 1.95 x)] is traced
   up from the deposition at the lowest seed (Delta = 0.6): the smallest Delta at which the
   state the drop lands on stops existing or being stable (a contact fold, a smooth fold or
   a kind change), with how it ends: where the deposited state is lost.
-* ``spreading``: the quasi-static spreading through its jumps
-  (:func:`elastocap.strip.trace.trace_contact_branches`' ``results["spreading"]``): where
-  the open state is lost, it jumps (by descent) to another state; the Delta at which it
-  jumps to an encapsulated state (tag ``→enc``) is where a quasi-static spreading cannot
-  stay open. This is the static prediction of the phase diagram.
+  This is the static prediction of the phase diagram: beyond it a quasi-static spreading
+  cannot stay on the state it was deposited on.
 * ``open_max`` / ``encapsulated_min``: the window over every traced branch.
 
 Each quantity is printed at the three n with the observed order p of v(n) = v + C n^-p
@@ -81,7 +78,6 @@ def main():
             w = bs.results["window"]
             run = {"x": x, "n": n, "wall_time_s": time.perf_counter() - t,
                    "deposition_end": open_branch_end(bs),
-                   "spreading": bs.results["spreading"],
                    "open_max": w["open_max"], "encapsulated_min": w["encapsulated_min"],
                    "bistable": w["bistable"], "width": w["width"],
                    "branches": [{k: b[k] for k in ("label", "range", "end_status")}
@@ -94,10 +90,7 @@ def main():
                 json.dump(data, f, indent=1, default=float)
             os.replace(path + ".tmp", path)
             de = run["deposition_end"]
-            spr = run["spreading"]
             print(f"x = {x:g}, n = {n}: deposition end {de['value']} ({de['how']}), "
-                  f"spreading open until {spr['value']} ({spr['how']}, "
-                  f"{len(spr['jumps'])} jumps), "
                   f"open_max {w['open_max']['value']} ({w['open_max']['how']}), "
                   f"encapsulated_min {w['encapsulated_min']['value']} "
                   f"({w['encapsulated_min']['how']}), {run['wall_time_s']:.0f} s",
@@ -110,7 +103,7 @@ def main():
         runs = {r["n"]: r for r in data["runs"] if r["x"] == x}
         if not all(n in runs for n in a.n):
             continue
-        for key in ("deposition_end", "spreading", "open_max", "encapsulated_min"):
+        for key in ("deposition_end", "open_max", "encapsulated_min"):
             vals = [runs[n][key]["value"] for n in a.n]
             vals = [float(v) if v is not None else math.nan for v in vals]
             p, err = observed_order(a.n, vals)
@@ -128,9 +121,6 @@ def main():
 def _short(end):
     """A short tag of how an end was found (table cells)."""
     how = str(end.get("how") or "")
-    if "; " in how:  # the spreading: how its last stretch ended; where it jumped
-        first, rest = how.split("; ", 1)
-        return _short({"how": first}) + ("→enc" if "encapsulated" in rest else "→?")
     tag = {"smooth fold": "sf", "smooth_fold": "sf", "contact fold": "cf",
            "contact_fold": "cf", "kind change": "kc", "kind_change": "kc",
            "stability lost": "sl", "stability_lost": "sl", "inadmissible": "ia",

@@ -115,9 +115,10 @@ def render(template: str, refs, imports: str = "") -> str:
     refs : sequence of (kind, module, name, stiffness, native)
         Per effect: its kind, where its kernel is imported from, the (module, name) of its
         optional stiffness hook (or None), and whether the method handles the effect
-        itself instead of calling its kernel: False, True (a ground, the midpoint
-        method's; its height is read by ``_ground_height``) or ``"contact"`` (the rod's
-        self-contact, both methods; its thickness is read by ``_contact_thickness``).
+        itself instead of calling its kernel: False, True (a ground: its height is read
+        by ``_ground_height``, its kernel called through ``_ground``) or ``"contact"``
+        (the rod's self-contact, both methods; its thickness is read by
+        ``_contact_thickness``).
     imports : str
         The method's own import lines.
 
@@ -132,6 +133,9 @@ def render(template: str, refs, imports: str = "") -> str:
     ``_stiffness(x, v, t, edge_len, mass, K, U, C$fargs) -> int``
         The stiffness hooks of the force effects (low-rank parts in consecutive blocks of
         ``U`` and ``C``); returns the total rank.
+    ``_ground(x, v, t, edge_len, winv, stage$pargs)``
+        The natively handled ground's kernel at ``stage`` (RATTLE calls it; the midpoint
+        method does not).
     ``_ground_height(t$pargs) -> float``
         The height of the natively handled ground (0.0 without one).
     ``_contact_thickness(t$pargs) -> float``
@@ -147,11 +151,16 @@ def render(template: str, refs, imports: str = "") -> str:
     import string
 
     kernel_imports = []
-    forces, damps, cons, stiff, ground, contact = [], [], [], [], [], []
+    forces, damps, cons, stiff, ground, contact, holds = [], [], [], [], [], [], []
     for j, (kind, mod, name, hook, native) in enumerate(refs):
         p = f"params[{j}]"
+        if native == "contact":
+            contact.append(p)
+            continue
         if native:
-            (contact if native == "contact" else ground).append(p)
+            ground.append(p)
+            kernel_imports.append(f"from {mod} import {name} as _k{j}")
+            holds.append(f"    _k{j}(x, v, t, {p}, edge_len, winv, stage)")
             continue
         kernel_imports.append(f"from {mod} import {name} as _k{j}")
         if kind == "force":
@@ -200,6 +209,9 @@ def render(template: str, refs, imports: str = "") -> str:
         _DISPATCH,
         f"def _stiffness(x, v, t, edge_len, mass, K, U, C{fargs}):",
         "    r = 0", *stiff, "    return r", "", "",
+        _DISPATCH,
+        f"def _ground(x, v, t, edge_len, winv, stage{pargs}):",
+        *holds, "    return None", "", "",
         _DISPATCH,
         f"def _ground_height(t{pargs}):",
         f"    return {ground[0] + '[0]' if ground else '0.0'}",

@@ -39,9 +39,11 @@ from the effect's name or its position in the list.  Optional attributes:
 
 ``ground_height_param`` : int, of a constraint effect
     Declares the effect a frictionless rigid ground ``z >= params[ground_height_param]``
-    (perfectly inelastic).  RATTLE calls its kernel like any constraint's; the midpoint
-    method (:mod:`dynamics.midpoint`) does not call it and puts the ground into its Newton
-    system instead (it needs the index to be 0).  :class:`Ground` sets it.
+    (perfectly inelastic).  Both methods need the index to be 0.  RATTLE calls its kernel
+    (stage 0 holds, stage 1 stops) and then releases every held node the ground would
+    pull (no adhesion: :mod:`dynamics.rattle`); the midpoint method
+    (:mod:`dynamics.midpoint`) does not call it and puts the ground into its Newton
+    system instead.  :class:`Ground` sets it.
 ``self_contact_thickness_param`` : int, of a constraint effect
     Declares the effect the rod's self-contact with thickness
     ``params[self_contact_thickness_param]`` (must be 0): both methods handle it
@@ -513,6 +515,14 @@ class SelfContact(Effect):
         if not (thickness > 0 and math.isfinite(thickness)):
             raise ValueError(f"SelfContact thickness must be > 0 and finite, got {thickness!r}")
         super().__init__(name, [thickness])
+
+
+def is_ground(effect) -> bool:
+    """Whether an effect is a frictionless rigid ground, by the effect protocol (a
+    constraint effect declaring ``ground_height_param``, the index of its height z0 in
+    ``params``; :class:`Ground` does)."""
+    return (getattr(effect, "kind", None) == "constraint"
+            and getattr(effect, "ground_height_param", None) is not None)
 
 
 def is_self_contact(effect) -> bool:

@@ -96,7 +96,7 @@ import numpy as np
 from .cache import dependency_digest, is_compiled, load_module
 from .codegen import kernel_ref, render, stepper_depends
 from .contact import check_self_contact, contact_failure, contact_stats, new_contact_work
-from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK, is_self_contact
+from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK, is_ground, is_self_contact
 from .rattle import stable_dt
 
 __all__ = [
@@ -1496,14 +1496,6 @@ def _stiffness_ref(effect):
     if hook is None:
         return None
     return kernel_ref(SimpleNamespace(name=effect.name, kernel=hook))
-
-
-def is_ground(effect) -> bool:
-    """Whether a constraint effect is a frictionless rigid ground, by the effect protocol:
-    it declares ``ground_height_param``, the index of its height z0 in ``params``
-    (:class:`dynamics.Ground` does).  The midpoint method puts such a ground into its
-    Newton system instead of calling its kernel."""
-    return getattr(effect, "ground_height_param", None) is not None
 
 
 def compile_stepper(effects=()):

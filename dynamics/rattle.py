@@ -12,7 +12,10 @@ with damping split around it (Strang):
 4. SHAKE: project ``x*`` onto the edge lengths (Newton + tridiagonal solves), starting
    from ``x* + W G^T lam`` with ``lam`` the previous step's multipliers (the constraint
    forces change little in a step: the same root in fewer updates, 2 instead of 3 on
-   fig3-strip); ``v_h = (x_new - x)/dt``;
+   fig3-strip); a node the ground holds that the multipliers would lift above it from
+   its drift is released (the ground pushes, it never pulls) and, as where the
+   projection pushed a free node through the ground, the step is projected again;
+   ``v_h = (x_new - x)/dt``;
 5. forces at ``x_new``; half kick ``v = v_h + dt/2 W F(x_new)``;
 6. constraint effects, stage 1; RATTLE velocity projection (``G v = 0``);
 7. damping effects over ``dt/2``.
@@ -72,7 +75,7 @@ from .cache import is_compiled, load_module
 from .codegen import kernel_ref, render, stepper_depends
 from .constraints import SHAKE_FINAL, new_work
 from .contact import check_self_contact, contact_failure, contact_stats, new_contact_work
-from .effects import KINDS, is_self_contact
+from .effects import KINDS, is_ground, is_self_contact
 from .rod import kinetic_energy
 
 __all__ = ["DT_BOUND_C", "Run", "compile_stepper", "stable_dt"]
@@ -149,17 +152,46 @@ def _forces(x, xf, v, t, edge_len, mass, B, F, Ff, energy, bw$fargs):
 
 
 @numba.njit(cache=True, inline="always")
+def _hold(x, v, t, edge_len, winv, stage$pargs):
+    _constrain(x, v, t, edge_len, winv, stage$pargs)
+    _ground(x, v, t, edge_len, winv, stage$pargs)
+
+
+@numba.njit(cache=True, inline="always")
+def _release(xf, xnf, vhf, winvf, winv0f, lam, dt, z0):
+    # the ground holds a node it would pull: its kernel held the node's vertical
+    # coordinate where the drift took it below z0, and the edges' multipliers of the
+    # projection lift it above z0 from its drift. Such a node is released (no adhesion:
+    # the ground's reaction is compressive); returns how many.
+    n = xf.shape[0] // 2
+    freed = 0
+    for i in range(n):
+        jz = 2 * i + 1
+        if winvf[jz] != 0.0 or winv0f[jz] == 0.0 or winvf[jz - 1] == 0.0 or xnf[jz] != z0:
+            continue
+        dz = 0.0
+        if i > 0:
+            dz += (xf[jz] - xf[jz - 2]) * lam[i]
+        if i < n - 1:
+            dz -= (xf[jz + 2] - xf[jz]) * lam[i + 1]
+        if xf[jz] + dt * vhf[jz] + winv0f[jz] * dz > z0:
+            winvf[jz] = winv0f[jz]
+            freed += 1
+    return freed
+
+
+@numba.njit(cache=True, inline="always")
 def _prepare(x, v, t, edge_len, winv0, A, cw, lam$pargs):
     xn = A[1]
     winv = A[3]
     _copy2(xn, x)
     _copy2(winv, winv0)
-    _constrain(xn, v, t, edge_len, winv, 0$pargs)
+    _hold(xn, v, t, edge_len, winv, 0$pargs)
     lam[:] = 0.0
     err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, False)
     lam[:] = 0.0
     _copy2(x, xn)
-    _constrain(x, v, t, edge_len, winv, 1$pargs)
+    _hold(x, v, t, edge_len, winv, 1$pargs)
     velocity_projection(x, v, winv, cw)
     return constraint_error(x, edge_len)
 
@@ -175,7 +207,7 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
         vhf[j] = vf[j] + half * winv0f[j] * Ff[j]
         xnf[j] = xf[j] + dt * vhf[j]
         winvf[j] = winv0f[j]
-    _constrain(xn, vh, t1, edge_len, winv, 0$pargs)
+    _hold(xn, vh, t1, edge_len, winv, 0$pargs)
     # SHAKE starts from the drift moved by the previous step's multipliers (a predictor
     # of the constraint forces); the root is the same, only the iteration count changes
     err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, True, SHAKE_FINAL)
@@ -185,10 +217,15 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
         for j in range(nc):
             xnf[j] = xf[j] + dt * vhf[j]
             winvf[j] = winv0f[j]
-        _constrain(xn, vh, t1, edge_len, winv, 0$pargs)
+        _hold(xn, vh, t1, edge_len, winv, 0$pargs)
         lam[:] = 0.0
         err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, False,
                                          SHAKE_FINAL)
+    freed = 0
+    if HAS_GROUND and it >= 0:
+        # read before a stale predictor is dropped: a rod at rest is held by the ground
+        # with the multipliers of the predictor alone
+        freed = _release(xf, xnf, vhf, winvf, winv0f, lam, dt, _ground_height(t1$pargs))
     if it == 0:
         # the prediction needed no update: its multipliers may be stale (a rod at
         # rest would keep being moved by them at round-off level); start the
@@ -201,20 +238,22 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
         diag[5] = err
         diag[8] = 0.0
         return 2
-    if HAS_CONSTRAINTS:
+    if HAS_CONSTRAINTS or HAS_GROUND:
         # the projection may push a free node through a unilateral constraint (ground):
         # re-apply the constraints to the projected positions and project again (a no-op
         # when no new coordinate got held: protocol: a constraint kernel holds (zeroes
-        # winv of) every coordinate it sets)
+        # winv of) every coordinate it sets); also when the ground released a node it
+        # would have pulled (first round; a node to release after that waits a step)
         for _round in range(CONTACT_ROUNDS):
             held = 0
             for j in range(nc):
                 held += winvf[j] == 0.0
-            _constrain(xn, vh, t1, edge_len, winv, 0$pargs)
+            _hold(xn, vh, t1, edge_len, winv, 0$pargs)
             for j in range(nc):
                 held -= winvf[j] == 0.0
-            if held == 0:
+            if held == 0 and freed == 0:
                 break
+            freed = 0
             diag[1] += 1
             err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, False, 0.0)
             if it2 < 0:
@@ -239,7 +278,7 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
     _forces(x, xf, vh, t1, edge_len, mass, B, F, Ff, energy, bw$fargs)
     for j in range(nc):
         vf[j] = vhf[j] + half * winvf[j] * Ff[j]
-    _constrain(x, v, t1, edge_len, winv, 1$pargs)
+    _hold(x, v, t1, edge_len, winv, 1$pargs)
     # SHAKE has just split winvf into the work array (constraint kernels change winv at
     # stage 0 only)
     velocity_projection_flat(xf, vf, winvf, cw, True)
@@ -387,7 +426,7 @@ def run_frames(mode, x, v, t0, dt, step, stops, record, pos, ens, rec_steps, nre
 
 def _generate_source(refs):
     """Source of a RATTLE stepper module for ``refs = [(kind, module, name, native), ...]``
-    (``native`` ``"contact"`` for the self-contact, else False)
+    (``native`` ``"contact"`` for the self-contact, True for the ground, else False)
     (:func:`dynamics.codegen.render` of :data:`_TEMPLATE`).
 
     Layout of the generated functions' arguments: ``x, v`` (n, 2) the state; ``A`` the
@@ -406,6 +445,20 @@ def _generate_source(refs):
 
 
 _MODULES: dict = {}
+
+
+def _check_ground(effect, effects) -> bool:
+    """Whether RATTLE handles ``effect`` as the ground: its kernel holds and stops, and
+    the stepper releases the nodes it would pull (one ground, height at params[0])."""
+    if not is_ground(effect):
+        return False
+    if int(effect.ground_height_param) != 0:
+        raise ValueError(f"effect {effect.name!r}: the ground's height must be params[0]; "
+                         f"got ground_height_param = {effect.ground_height_param!r}")
+    if sum(is_ground(e) for e in effects) > 1:
+        raise ValueError(f"effect {effect.name!r}: RATTLE handles one ground; got "
+                         f"{sum(is_ground(e) for e in effects)} ground effects")
+    return True
 
 
 def compile_stepper(effects=()):
@@ -432,7 +485,8 @@ def compile_stepper(effects=()):
             raise ValueError(
                 f"effect {e.name!r}: kind must be one of {KINDS}, got {e.kind!r}"
             )
-        refs.append((e.kind, *kernel_ref(e), check_self_contact(e, effects)))
+        refs.append((e.kind, *kernel_ref(e),
+                     check_self_contact(e, effects) or _check_ground(e, effects)))
     key = tuple(refs)
     if key not in _MODULES:
         _MODULES[key] = load_module("rattle", _generate_source(key), stepper_depends(key))

@@ -87,7 +87,6 @@ from continuation import (
     SearchSettings,
     SpecialPoint,
     continue_branch,
-    deflated_newton,
     inertia_negative,
 )
 from elastocap._version import __version__
@@ -1434,152 +1433,6 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
             "stable_both_sides": bool(change is not None and list(change) == [0, 0])}
 
 
-#: The quasi-static spreading's jump: where its stable open stretch ends at Delta_e, the
-#: state there is released at Delta_e + JUMP_DELTA (length; 10x that if the descent fails)
-#: and descends to the state it jumps to. Far above the folds' location error (~1e-9);
-#: from the state at a smooth fold (n = 60, drop mid-strip, Delta = 1.2373) the descent
-#: converged at +3e-4, 1e-3 and 3e-3, and from the traced point before it failed at +1e-4.
-JUMP_DELTA = 3e-4
-#: Jumps followed before the path is cut (a staircase of small contact folds at fine n).
-MAX_JUMPS = 60
-
-
-def _walk_end(br, i0, step, label, folds, kind_changes):
-    """Where the stable, open, admissible stretch of ``br`` from point ``i0`` along
-    ``step`` (+1 or -1), followed while Delta does not decrease, ends: (Delta, how,
-    stability change, index of the end's state (the located fold's point, else the last
-    stretch point), index of the first point past)."""
-    idx = np.arange(i0, len(br.p)) if step > 0 else np.arange(i0, -1, -1)
-    o = br.observables
-    ok = ((br.stability == 0) & (o["encapsulated"] == 0.0) & (o["admissible"] == 1.0))[idx]
-    d_all = br.p[idx]
-    if not ok[0]:
-        return float(d_all[0]), "not a stable open state", None, int(i0), int(i0)
-    turn = np.flatnonzero(np.diff(d_all) < 0.0)
-    stop = int(np.argmin(ok)) if not ok.all() else ok.size
-    turned = turn.size > 0 and turn[0] + 1 <= stop
-    if turned:
-        stop = int(turn[0]) + 1
-    end = float(d_all[:stop].max())
-    last = int(idx[int(np.argmax(d_all[:stop]))])
-    change, past = None, (int(idx[stop]) if stop < ok.size else None)
-    if turned:
-        how = "turning point (not located)"
-    elif stop == ok.size:
-        ends = br.metadata.get("end_status", ["?", "?"])
-        e = ends[1] if step > 0 else ends[0]
-        how = "range" if e == "parameter_bound" else f"branch end ({e})"
-    elif br.stability[idx[stop]] != 0:
-        how = "stability lost"
-    elif o["encapsulated"][idx[stop]] == 1.0:
-        how = "kind change"
-    else:
-        how = "inadmissible"
-    if stop < ok.size:
-        a, b = sorted((end, float(d_all[stop])))
-        fa, fb = (end, math.inf) if turned else (a, b)
-        lo_i, hi_i = sorted((last - step, int(idx[stop])))
-        for f in folds:
-            if f["branch"] == label and fa - 1e-9 <= f["value"] <= fb + 1e-9 and \
-                    (not turned or lo_i <= f["index"] <= hi_i) and \
-                    min(i0, int(idx[-1])) <= f["index"] <= max(i0, int(idx[-1])):
-                end, how, change = f["value"], f"{f['kind']} fold", f["stability_change"]
-                last = int(f["index"])
-                break
-        for c in kind_changes:
-            if c["branch"] == label and a - 1e-9 <= c["value"] <= b + 1e-9:
-                end, how, change = c["value"], "kind change", None
-    return end, how, change, last, past
-
-
-def _spreading(strip: DiscreteStrip, branches, labels, folds, kind_changes, hi) -> dict:
-    """The quasi-static spreading from the deposition at the lowest seed: Delta rises
-    slowly; the strip follows its stable open state, and where that state stops existing
-    or being stable (the open branch's end) it is released just past it (``JUMP_DELTA``)
-    and descends (:func:`~elastocap.strip.solve.minimize_energy`; pushed both ways along
-    the unstable mode where the state is lost without a fold, the lower landing taken)
-    to the state it jumps to. A jump to a stable open state on a traced branch goes on
-    along that branch; the path ends at the first jump to an encapsulated state (or to
-    none, or off the traced branches). Returns ``value`` (the Delta where the open state
-    is lost for good), ``how``, ``jumps`` (Delta, how each stretch ended, where it
-    landed) and ``first`` (the open branch's end, the first jump)."""
-    ks = [k for k, lab in enumerate(labels) if lab.startswith("deposition at")]
-    if not ks:
-        return {"value": None, "how": "no deposition branch", "jumps": []}
-    k = min(ks, key=lambda q: float(labels[q].rsplit("= ", 1)[1]))
-    prob = ContactProblem(strip)
-    N = prob.N
-    br, i0, step = branches[k], int(branches[k].metadata["start_index"]), 1
-    jumps = []
-    for _ in range(MAX_JUMPS):
-        end, how, _chg, last, past = _walk_end(br, i0, step, labels[k], folds, kind_changes)
-        if how == "range" or how.startswith("branch end"):
-            return {"value": end, "how": how, "jumps": jumps}
-        if how == "not a stable open state":
-            return {"value": None if not jumps else end,
-                    "how": ("the deposition is " if not jumps else
-                            "the traced point next to the landing is ") + how,
-                    "jumps": jumps}
-        u = br.u[last][:N]
-        pushes = [np.zeros(N)]
-        if how == "stability lost" and past is not None:
-            ru, rr = prob.split(br.u[past])
-            sp_ = strip.with_(delta=float(br.p[past]))
-            eqp = Equilibrium(u=ru, energy=sp_.energy(ru), parts={},
-                              reactions=np.maximum(rr, 0.0), active=prob.held(br.u[past],
-                                                                            br.p[past]),
-                              residual=0.0, iterations=0, status="converged", message="")
-            mode = unstable_mode(sp_, eqp)
-            pushes = [PUSH * mode, -PUSH * mode]
-        lands = []
-        for dj in (end + JUMP_DELTA, end + 10.0 * JUMP_DELTA):
-            # the descent from next to a fold can stall where the energy is flat: further
-            if dj > hi:
-                break
-            s = strip.with_(delta=dj)
-            lands = [e for e in (minimize_energy(s, u + q) for q in pushes)
-                     if e.success and e.index == 0]
-            if lands:
-                break
-        if end + JUMP_DELTA > hi:
-            return {"value": end, "how": f"{how} at the range's end", "jumps": jumps}
-        if not lands:
-            jumps.append({"delta": end, "how": how, "to": "no stable state found"})
-            return {"value": end, "how": f"{how}; the descent found no stable state",
-                    "jumps": jumps}
-        e = min(lands, key=lambda q: q.energy)
-        if is_encapsulated(s, e.u):
-            jumps.append({"delta": end, "how": how, "to": "encapsulated"})
-            return {"value": end, "how": f"{how}; jumps to an encapsulated state",
-                    "jumps": jumps}
-        # the traced branch through the landing, and the way Delta rises along it
-        at = None
-        for kk, b in enumerate(branches):
-            for i in range(len(b.p) - 1):
-                if (b.p[i] - dj) * (b.p[i + 1] - dj) > 0.0 or b.p[i] == b.p[i + 1]:
-                    continue
-                w = (dj - b.p[i]) / (b.p[i + 1] - b.p[i])
-                g = (1 - w) * b.u[i] + w * b.u[i + 1]
-                if np.max(np.abs(g[:N] - e.u)) > 0.05:
-                    continue
-                res = deflated_newton(prob, g, dj, tol=_POLISH, max_iter=12,
-                                      indices=prob.deflation_indices)
-                if res.converged and np.max(np.abs(res.u[:N] - e.u)) <= 1e-6:
-                    at = (kk, i + 1 if b.p[i + 1] > b.p[i] else i,
-                          1 if b.p[i + 1] > b.p[i] else -1)
-                    break
-            if at is not None:
-                break
-        if at is None:
-            jumps.append({"delta": end, "how": how, "to": "open, on no traced branch"})
-            return {"value": end, "how": f"{how}; jumps to an open state on no traced branch",
-                    "jumps": jumps}
-        k, i0, step = at
-        br = branches[k]
-        jumps.append({"delta": end, "how": how, "to": f"open ({labels[k]})"})
-    return {"value": None, "how": f"cut after MAX_JUMPS = {MAX_JUMPS} jumps", "jumps": jumps}
-
-
 def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
     """The seeds and starts that make the branches of the analysis ``coarse`` at the
     resolution of ``strip``: the same seeds (Delta, kind) where a seed made a branch; the
@@ -1621,8 +1474,7 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
     return {"branches": branches, "labels": labels, "search": res, "folds": folds,
             "problem": ContactProblem(strip),
             "kind_changes": kinds, "window": window, "events": _event_list(branches, labels),
-            "open_branch_end": _open_end(branches, labels, folds, kinds),
-            "spreading": _spreading(strip, branches, labels, folds, kinds, hi)}
+            "open_branch_end": _open_end(branches, labels, folds, kinds)}
 
 
 def _nearest(value, candidates):
@@ -1670,17 +1522,12 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
     with threadpool_limits(limits=1, user_api="blas"):
         a = _analyse(strip, lo, hi, progress)
         window, end = a["window"], {**a["open_branch_end"], "error_estimate": None}
-        spreading = {**a["spreading"], "error_estimate": None}
         if refine:
             n_fine = int(n_refined) if n_refined is not None else int(round(REFINE * strip.n))
             if n_fine == strip.n:
                 raise ValueError(f"n_refined: got {n_fine}; expected it to differ from n = "
                                  f"{strip.n}")
             f = _analyse(strip.with_(n=n_fine), lo, hi, progress, follow=a)
-            sf = f["spreading"]
-            spreading["value_refined"], spreading["how_refined"] = sf["value"], sf["how"]
-            if spreading["value"] is not None and sf["value"] is not None:
-                spreading["error_estimate"] = abs(spreading["value"] - sf["value"])
             fend = f["open_branch_end"]
             end["value_refined"], end["how_refined"] = fend["value"], fend["how"]
             if end["value"] is not None and fend["value"] is not None:
@@ -1701,8 +1548,7 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
     bs = BranchSet(scene, parameter, (lo, hi), ContactProblem(strip), a["branches"],
                    a["labels"], a["folds"])
     bs.results = {"window": window, "kind_changes": a["kind_changes"],
-                  "events": a["events"], "spreading": spreading,
-                  "not_handled": NOT_HANDLED}
+                  "events": a["events"], "not_handled": NOT_HANDLED}
     bs.metadata = {
         "model": "strip",
         "scene": scene.data,

@@ -56,8 +56,10 @@ def _strip(method):
 def test_trajectories_are_those_of_the_previous_steppers(scene, method):
     """The positions and velocities recorded by the two separate steppers the driver
     replaced (``simulate`` and ``simulate_implicit`` of the previous code, same machine,
-    numba 0.68.1): bit for bit where the method did not change.  On another CPU or numba
-    version round-off may differ: there the comparison is to 1e-9."""
+    numba 0.68.1): bit for bit where the method did not change.  RATTLE's strip run is
+    recorded with the ground releasing the nodes it would pull (before, the ground held
+    them: 0.05 apart at t = 2).  On another CPU or numba version round-off may differ:
+    there the comparison is to 1e-9."""
     ref = np.load(REF)
     res = (_free if scene == "free" else _strip)(method)
     assert res.success, res.message

@@ -232,11 +232,11 @@ def test_violent_landing_retries_rejected_steps_with_substeps():
     assert "rejected step(s)" in r.message
     assert r.positions[:, :, 1].min() >= 0.0
     assert r.stats["constraint_error"] < 1e-12
-    # the retries share the step's one compiled call site with the plain steps: the
-    # trajectory is, bit for bit, that of a loop with a separate retry call site (recorded
-    # with that loop on this machine and numba version).  Elsewhere round-off differs and,
-    # after 1822 rejected steps, no tolerance is known to hold: the physical checks above
-    # are what a different build is held to.
+    # bit for bit the recorded trajectory (this machine and numba version; recorded with
+    # the ground releasing the nodes it would pull, 1795 rejected steps; before that
+    # release, and with a separate retry call site, 1822).  Elsewhere round-off differs
+    # and, after so many rejected steps, no tolerance is known to hold: the physical checks
+    # above are what a different build is held to.
     ref = np.load(Path(__file__).parent / "data" / "reference_rejected_steps.npz")
     if (str(ref["numba_version"]) == numba.__version__
             and str(ref["machine"]) == platform.machine()):

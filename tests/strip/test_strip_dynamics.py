@@ -85,3 +85,35 @@ def test_damped_run_observed_order():
     gaps = np.array([dynamic_gap(P, u, int(n))[1] for n in ns])
     order = -np.polyfit(np.log(ns), np.log(gaps), 1)[0]
     assert 1.6 < order < 2.6, f"observed order {order:.2f}, gaps {gaps}"
+
+
+@pytest.mark.parametrize("integrator", ["rattle", "implicit"])
+def test_the_ground_never_pulls_the_strip_down(integrator):
+    # x = 2, Delta = 0.96 (above the largest Delta of a stable open state at 100 edges,
+    # 0.9034): overdamped from the flat strip, the strip must lift off under the drop
+    # and wrap it. RATTLE's ground used to hold the node under the drop's centre once
+    # the drift took it to the ground, pulling it down with -5.0 (force; q h = 0.143):
+    # the run came to rest open on no equilibrium. Independent of the dynamics: the
+    # static contact equilibrium the run rests on (the discrete strip's energy is the
+    # dynamics' energy), with every ground reaction compressive.
+    n = 100
+    sc = load_scene("fig3-strip", {
+        "drop.distance_from_end": 2.0, "drop.wetted_length": 0.96, "effects.damping": 2.0,
+        "numerics.t_max": 200.0, "numerics.n_edges": n, "numerics.rest_kinetic": 1e-12,
+        "numerics.rest_time": 2.0, "numerics.integrator": integrator})
+    res = run_impact(sc)
+    assert res.status == "at_rest" and res.outcome == "encapsulated", (res.outcome,
+                                                                         res.final_measure)
+    pos = res.simulation.positions[-1]
+    S = discrete_strip_for(sc, n)
+    d = np.diff(pos, axis=0)
+    u0 = np.concatenate([[max(pos[0, 1], 0.0)], np.unwrap(np.arctan2(d[:, 1], d[:, 0]))])
+    held = S.heights(u0) <= 1e-9
+    g, G = S.gradient(u0), S.constraint_jacobian(u0)[held]
+    r, *_ = np.linalg.lstsq(G.T, g, rcond=None)
+    # force balance with the ground's reactions (measured residual 6e-7 of |g| = 14.3):
+    # all compressive, the smallest the end node's half-edge weight q h / 2 = 0.0715
+    assert np.max(np.abs(g - G.T @ r)) < 1e-5
+    assert np.min(r) > 0.0, np.flatnonzero(held)[r <= 0.0]
+    eq = solve_equilibrium(S, u0, active=held)
+    assert eq.success and eq.index == 0 and np.max(np.abs(eq.u - u0)) < 1e-5
