@@ -107,10 +107,10 @@ def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
         row[f"{key}_coarse"] = coarse if coarse is not None else math.nan
         row[f"{key}_we_sqrt"] = spreading.we_sqrt(v) if math.isfinite(v) else math.nan
         how = w[wkey].get("how_refined") or w[wkey].get("how")
-        if side == "deposition":
-            row["deposition_how"] = how
         at_bound = math.isfinite(v) and (abs(v - lo) < 1e-9 or abs(v - hi) < 1e-9)
-        row[f"{side}_end"] = "scan_limit" if at_bound else how
+        # the deposition's end value is row["deposition_end"]; how it ends, "deposition_how"
+        row["deposition_how" if side == "deposition" else f"{side}_end"] = \
+            "scan_limit" if at_bound else how
         if coarse is None or fine is None:
             row[f"{side}_change"], row[f"{side}_settled"] = math.nan, False
             continue
