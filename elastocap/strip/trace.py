@@ -1018,6 +1018,7 @@ def _join(problem: ContactProblem, halves) -> Branch:
     down, up = halves
     base = problem.strip
     P, V, I, IS, SEG, segs, sps = [], [], [], [], [], [], []
+    at = {}  # id of each segment's event (kinks included) -> its point's index
 
     def add_segment(seg, reverse):
         i0 = len(P)
@@ -1032,6 +1033,8 @@ def _join(problem: ContactProblem, halves) -> Branch:
         segs.append({"start": i0, "stop": len(P),
                      "held": [int(q) for q in np.flatnonzero(seg.active)]})
         ev = seg.event
+        if ev is not None:
+            at[id(ev)] = i0 if reverse else len(P) - 1
         if ev is not None and ev.kind != "contact_point_on_node":
             sps.append(SpecialPoint("event", i0 if reverse else len(P) - 1, ev.delta,
                                     problem.join(ev.u, ev.reactions), ev.precision, True,
@@ -1060,9 +1063,11 @@ def _join(problem: ContactProblem, halves) -> Branch:
         return _empty(f"no segment traced: {down.message}; {up.message}")
     for half, reverse in ((down, True), (up, False)):
         for tp in half.turning_points:
-            ev = next(e for e in half.events if e.delta == tp["delta"] and e.node == tp["node"])
-            i = next(sp.index for sp in sps if sp.kind == "event" and sp.p == ev.delta
-                     and sp.data["node"] == ev.node)
+            # the event where Delta turns back (a contact event, or a corner where a contact
+            # point crosses a node: not among the branch's contact events)
+            ev = next(sg.event for sg in half.segments if sg.event is not None
+                      and sg.event.delta == tp["delta"] and sg.event.node == tp["node"])
+            i = at[id(ev)]
             chg = list(tp["index"][::-1]) if reverse else list(tp["index"])
             sps.append(SpecialPoint("fold", i, ev.delta, problem.join(ev.u, ev.reactions),
                                     ev.precision, True, "contact",

@@ -535,3 +535,17 @@ def test_symmetric_open_state_loses_stability_to_an_antisymmetric_mode():
     z = above.heights(asym.u)
     assert asym.success and asym.index == 0 and np.max(np.abs(z[c + j] - z[c - j])) > 0.1
     assert asym.energy < sym.energy - 1e-3
+
+
+@pytest.mark.slow
+def test_cli_branches_at_a_mirror_symmetric_grid(tmp_path, capsys):
+    # x = 4, n = 143 (~40 s): the drop's centre is node 103. One branch turns back at a
+    # corner (a contact point on a node), which is no contact event; joining its halves
+    # raised StopIteration. The report lists the ways on not followed where the mirror pair
+    # (64, 142) lifts off together at Delta = 1.2333897 (measured: index 1 each).
+    argv = ["branches", "fig3-strip", "--set", "drop.distance_from_end=4", "--set",
+            "numerics.n_edges=143", "--out", str(tmp_path / "br"), "--progress", "none"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "also start branches not traced" in out
+    assert "Delta 1.233389717" in out
