@@ -10,18 +10,28 @@
 
 Workers only compute and return plain data; the process running the sweep writes the store.
 
-A local worker ends itself when the process that started it is gone (a thread polls the
-parent's pid every :data:`PARENT_POLL_S`): killing a sweep, even with SIGKILL, leaves no
-worker computing. A local pool whose worker died (killed, out of memory) is replaced by
+A local worker ends with the process that started it: killing a sweep, by SIGTERM or
+SIGKILL, leaves no worker computing. On Linux the kernel kills the worker (``prctl
+PR_SET_PDEATHSIG``), which works while the worker is inside a compiled time stepper, and a
+stepper holds the GIL for a whole run, so no thread of the worker could notice. The signal
+fires when the *thread* that started the worker ends, and a
+:class:`~concurrent.futures.ProcessPoolExecutor` starts workers from the thread that
+submits to it: open and use a pool from one thread, as :func:`elastocap.sweep.run_sweep`
+does. Elsewhere a thread of the worker polls the parent's pid every
+:data:`PARENT_POLL_S`; it runs between compiled calls only.
+
+A local pool whose worker died (killed, out of memory) is replaced by
 :meth:`SweepExecutor.restart`; the sweep then retries the runs that were in flight.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import multiprocessing
 import numbers
 import os
+import signal
 import sys
 import threading
 import time
@@ -57,17 +67,38 @@ def _watch_parent(parent_pid: int) -> None:
         time.sleep(PARENT_POLL_S)
 
 
+#: ``prctl`` option: the signal a process gets when its parent thread ends (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> bool:
+    """Ask the kernel to SIGKILL this process when its parent ends (Linux); False elsewhere
+    or if the call fails. Called only inside a worker, which is this module's own process."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
 def _init_worker(parent_pid: int | None = None) -> None:
     """Initializer of a local worker: runs before any task, so before numba is imported by
-    elastocap's run function. Starts the thread that ends the worker with its parent."""
+    elastocap's run function. Arranges for the worker to end with its parent."""
     os.environ.update(WORKER_ENV)
     if "numba" in sys.modules:  # the parent's main script imported it at top level
         import numba
 
         numba.set_num_threads(1)
-    if parent_pid is not None:
-        threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
-                         name="elastocap-parent-watch").start()
+    if parent_pid is None:
+        return
+    if _die_with_parent():
+        if os.getppid() != parent_pid:  # the parent ended before the request was made
+            os._exit(1)
+        return
+    threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True,
+                     name="elastocap-parent-watch").start()
 
 
 def worker_info() -> dict:

@@ -3,6 +3,7 @@
 resolution written into the scene, so tests know the true boundary."""
 
 import json
+import math
 import os
 import signal
 import time
@@ -144,6 +145,28 @@ def sleeping_run(scene_name, scene_json):
 
 
 sleeping_run.runner = "fake-sleeping"
+
+
+def _spin(n):
+    s = 0.0
+    for i in range(n):
+        s += math.sin(i * 1e-9)
+    return s
+
+
+def gil_holding_run(scene_name, scene_json):
+    """As :func:`sleeping_run`, but busy in compiled code that never releases the GIL (as a
+    time stepper is for a whole run), so no Python thread of the worker runs meanwhile."""
+    import numba
+
+    spin = numba.njit(_spin)
+    spin(10)  # compiled before the pid file says the worker is busy
+    Path(os.environ["SWEEP_FAKE_DIR"], f"worker-{os.getpid()}").write_text("")
+    spin(10**12)  # about 1000 s: killed before that
+    return result("open")
+
+
+gil_holding_run.runner = "fake-gil-holding"
 
 
 def late_shift_run(scene_name, scene_json):
