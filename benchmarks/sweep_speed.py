@@ -11,7 +11,8 @@ median and 90th percentile of one run's time (inside the worker), and the pool e
 
 Usage: ``python benchmarks/sweep_speed.py [--workers 2] [--nx 20] [--nwe 20]
 [--accuracy draft] [--t-max T] [--refine 0.02] [--verify] [--executors local,dask]
-[--fast]``.
+[--fast]``; ``--fig3d [--executors local,dask]``: the shipped Fig 3d's sweeps (both
+criteria, refinement and every verification level) instead of the grid.
 """
 
 from __future__ import annotations
@@ -27,8 +28,10 @@ from elastocap.scene import load_scene
 from elastocap.sweep import ResultStore, make_progress, run_sweep
 
 
-def _sweep(scene, xs, wes, refine, workers, progress, verify, executor):
-    """One sweep into a fresh store: (result, wall time, per-run times, table of rows)."""
+def _sweep(scene, xs, wes, refine, workers, progress, verify, executor, fig3d=False):
+    """One sweep into a fresh store: (result, wall time, per-run times, table of rows).
+    ``fig3d``: the shipped Fig 3d's two sweeps instead (both criteria, its grid, refinement
+    and verification levels, the ``default`` preset)."""
     import contextlib
 
     with tempfile.TemporaryDirectory() as tmp, contextlib.ExitStack() as stack:
@@ -46,8 +49,14 @@ def _sweep(scene, xs, wes, refine, workers, progress, verify, executor):
                     dashboard_address=None, env={"NUMBA_NUM_THREADS": "1"}))
             kw = {"scheduler": cluster.scheduler_address}
         t0 = time.perf_counter()
-        res = run_sweep(scene, xs, we_sqrts=wes, store=store, refine_tol=refine,
-                        progress=make_progress(progress), verify_levels=int(verify), **kw)
+        if fig3d:
+            from elastocap.paper_figures.fig3d import fig3d_sweeps
+
+            res, _ = fig3d_sweeps(store, "default", **kw)
+        else:
+            res = run_sweep(scene, xs, we_sqrts=wes, store=store, refine_tol=refine,
+                            progress=make_progress(progress), verify_levels=int(verify),
+                            **kw)
         wall = time.perf_counter() - t0
         with ResultStore(store) as st:
             rows = st.rows()
@@ -60,9 +69,15 @@ def _sweep(scene, xs, wes, refine, workers, progress, verify, executor):
 
 
 def main(workers=2, nx=20, nwe=20, accuracy="draft", t_max=None, refine=0.02, fast=False,
-         progress="text", verify=False, executors=("local",)):
+         progress="text", verify=False, executors=("local",), fig3d=False):
     if fast:  # a smoke run of the script itself
         nx, nwe, t_max, refine = 3, 3, 5.0, 0.5
+    if fig3d:
+        from elastocap.paper_figures.fig3d import FIG3D_TOL, fig3d_scene
+
+        scene = fig3d_scene("default")
+        accuracy, t_max, refine, nx, nwe = "default", scene.numerics.t_max, FIG3D_TOL, 12, 8
+        verify = True  # (its own levels: every-level checks at 1.5x, 2.25x, 3.375x)
     overrides = {"numerics.accuracy": accuracy}
     if t_max is not None:
         overrides["numerics.t_max"] = float(t_max)
@@ -74,9 +89,9 @@ def main(workers=2, nx=20, nwe=20, accuracy="draft", t_max=None, refine=0.02, fa
     out, tables, walls = {}, {}, {}
     for executor in executors:
         res, wall, times, table = _sweep(scene, xs, wes, refine, workers, progress, verify,
-                                         executor)
+                                         executor, fig3d)
         tables[executor], walls[executor] = table, wall
-        n = res.computed
+        n = len(table) if fig3d else res.computed  # fig3d: both criteria's runs
         grid = sum(r["stage"] == "grid" for r in res.runs)
         print(f"--- {executor}: scene fig3-strip, accuracy {accuracy}, t_max "
               f"{scene.numerics.t_max:g}, {res.executor}, "
@@ -119,7 +134,10 @@ if __name__ == "__main__":
     ap.add_argument("--executors", default="local",
                     help="comma-separated: local, dask (a LocalCluster of --workers workers)")
     ap.add_argument("--fast", action="store_true")
+    ap.add_argument("--fig3d", action="store_true",
+                    help="the shipped Fig 3d's sweeps (elastocap figures --only fig3d) "
+                    "instead of the grid options")
     ap.add_argument("--progress", default="text", choices=("none", "text", "tqdm"))
     a = ap.parse_args()
     main(a.workers, a.nx, a.nwe, a.accuracy, a.t_max, a.refine, a.fast, a.progress, a.verify,
-         tuple(a.executors.split(",")))
+         tuple(a.executors.split(",")), a.fig3d)

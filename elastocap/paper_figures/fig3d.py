@@ -61,6 +61,24 @@ def fig3d_resolution(accuracy: str, fast: bool = False):
     return sweep_resolutions(scene, grid_points(scene, xs, we_sqrts=we)[0])[0]
 
 
+def fig3d_sweeps(store, accuracy: str, fast: bool = False, **executor):
+    """The figure's two sweeps into ``store``: the paper's criterion, then the
+    frame-independent one on the same store (its runs are shared; only its own bisection
+    and verification runs are new). ``executor``: ``workers=`` or ``scheduler=``, as
+    :func:`~elastocap.sweep.run_sweep` takes them. Returns both sweep results."""
+    scene = fig3d_scene(accuracy)
+    if fast:
+        xs, we, refine, levels = [3.0], [1.0, 2.5], None, 0
+    else:
+        xs, we, refine, levels = FIG3D_X, FIG3D_WE, FIG3D_TOL, FIG3D_LEVELS
+    common = dict(we_sqrts=we, store=store, refine_tol=refine, verify_levels=levels,
+                  verify_every_level=bool(levels), overrides=fig3d_overrides(accuracy),
+                  **executor)
+    res = run_sweep(scene, xs, **common)
+    comp = run_sweep(scene, xs, criterion="companion_outcome", **common)
+    return res, comp
+
+
 def main(out_dir, fast: bool = False, workers: int | None = None,
          accuracy: str | None = None) -> list[Path]:
     """Sweep, refine, verify and plot; writes ``fig3d.png``, ``fig3d.json`` and
@@ -69,18 +87,7 @@ def main(out_dir, fast: bool = False, workers: int | None = None,
     out = Path(out_dir)
     accuracy = accuracy or ("draft" if fast else "default")
     scene = fig3d_scene(accuracy)
-    if fast:
-        xs, we, refine, levels = [3.0], [1.0, 2.5], None, 0
-    else:
-        xs, we, refine, levels = FIG3D_X, FIG3D_WE, FIG3D_TOL, FIG3D_LEVELS
-    store = out / f"fig3d-{accuracy}.sqlite"
-    common = dict(we_sqrts=we, store=store, refine_tol=refine, workers=workers,
-                  verify_levels=levels, verify_every_level=bool(levels),
-                  overrides=fig3d_overrides(accuracy))
-    res = run_sweep(scene, xs, **common)
-    # the frame-independent criterion on the same store: its runs are shared, only its own
-    # bisection and verification runs are new
-    comp = run_sweep(scene, xs, criterion="companion_outcome", **common)
+    res, comp = fig3d_sweeps(out / f"fig3d-{accuracy}.sqlite", accuracy, fast, workers=workers)
     body = res.to_dict()
     cd = comp.to_dict()
     body["companion"] = {"criterion": "companion_outcome", "boundary": cd["boundary"],
