@@ -109,6 +109,12 @@ SHAKE_CHORD = 1e-6
 #: that are not skipped (1), node coordinates and inverse masses split by component (4).
 WORK_ROWS = 12
 
+# Arguments the kernels below pass to one another as ``np.int64`` / ``np.bool_`` values,
+# never as bare constants: numba types a constant argument of a call from compiled code as
+# a literal and compiles a separate specialisation of the callee for each literal value
+# (``_split(.., 8)`` and ``_split(.., 10)`` would be two); a typed value costs nothing
+# measurable and lets one specialisation serve every call site and the calls from Python.
+
 
 def new_work(n_edges):
     """Zeroed work array for :func:`shake` and :func:`velocity_projection`, shape
@@ -197,7 +203,10 @@ def _edges(xf, work):
 def _split(qf, work, row):
     """Components of the flat node array ``qf`` into work rows ``row`` (x) and ``row + 1``
     (z), node j in column j: the row passes then read contiguous data (reading the
-    interleaved array costs a shuffle per value: 2x slower)."""
+    interleaved array costs a shuffle per value: 2x slower).
+
+    Called with ``row`` an ``np.int64`` (one specialisation for both rows, see the note
+    after :data:`WORK_ROWS`)."""
     for j in range(qf.shape[0] // 2):
         work[row, j] = qf[2 * j]
         work[row + 1, j] = qf[2 * j + 1]
@@ -623,7 +632,7 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
     err_old = _row_max(work, 6)
     lam[0] = 0.0
     lam[m + 1] = 0.0
-    _split(wf, work, 10)
+    _split(wf, work, np.int64(10))
     if warm:
         _move(xf, wf, work, lam)
     err_prev = np.inf
@@ -633,7 +642,7 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
         if err_prev <= SHAKE_CHORD:
             # the last update may be a chord step with the previous factors (see
             # SHAKE_CHORD): residuals first, the solve only if it is taken
-            _split(xf, work, 8)
+            _split(xf, work, np.int64(8))
             _shake_residuals(edge_len, work)
             err = _row_max(work, 6)
             if err <= SHAKE_TOL:
@@ -648,7 +657,7 @@ def shake_flat(xo, xf, wf, edge_len, work, lam, warm=False, final_tol=SHAKE_FINA
                 _move_acc(xf, wf, work, lam)
                 return err, it + 1, 0, err_old
             # otherwise a Newton step from the same point (the checks below see this err)
-        _split(xf, work, 8)
+        _split(xf, work, np.int64(8))
         _shake_rows(edge_len, work)
         err = _row_max(work, 6)
         if err <= SHAKE_TOL:
@@ -709,9 +718,9 @@ def velocity_projection_flat(xf, vf, wf, work, after_shake=False):
     198 edges.
     """
     _edges(xf, work)
-    _split(vf, work, 8)
+    _split(vf, work, np.int64(8))
     if not after_shake:
-        _split(wf, work, 10)
+        _split(wf, work, np.int64(10))
     _velocity_rows(work)
     worst = 0.0 if after_shake else _row_max(work, 6)
     if not _eliminate(work):

@@ -129,8 +129,7 @@ def stable_dt(edge_len, mu, B):
 #: The method's own imports in its generated module.
 _IMPORTS = """\
 from dynamics.bending import bending_force_add_flat
-from dynamics.constraints import (constraint_error, shake, shake_flat, velocity_projection,
-                                  velocity_projection_flat)
+from dynamics.constraints import constraint_error, shake_flat, velocity_projection_flat
 from dynamics.contact import contact_positions, contact_velocities
 from dynamics.rod import kinetic_energy
 """
@@ -188,11 +187,16 @@ def _prepare(x, v, t, edge_len, winv0, A, cw, lam$pargs):
     _copy2(winv, winv0)
     _hold(xn, v, t, edge_len, winv, 0$pargs)
     lam[:] = 0.0
-    err, it, edge, err0 = shake(x, xn, winv, edge_len, cw, lam, False)
+    # the flat kernels with the argument types of ``_step``'s calls (flags as np.bool_,
+    # not literals): one compiled specialisation of each serves both
+    nc = x.size
+    err, it, edge, err0 = shake_flat(x.reshape(nc), xn.reshape(nc), winv.reshape(nc),
+                                     edge_len, cw, lam, np.bool_(False), SHAKE_FINAL)
     lam[:] = 0.0
     _copy2(x, xn)
     _hold(x, v, t, edge_len, winv, 1$pargs)
-    velocity_projection(x, v, winv, cw)
+    velocity_projection_flat(x.reshape(nc), v.reshape(nc), winv.reshape(nc), cw,
+                             np.bool_(False))
     return constraint_error(x, edge_len)
 
 
@@ -210,7 +214,8 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
     _hold(xn, vh, t1, edge_len, winv, 0$pargs)
     # SHAKE starts from the drift moved by the previous step's multipliers (a predictor
     # of the constraint forces); the root is the same, only the iteration count changes
-    err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, True, SHAKE_FINAL)
+    err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, np.bool_(True),
+                                     SHAKE_FINAL)
     if it < 0:
         # the predictor can mislead after an abrupt change (an impact): retry from
         # the plain drift before rejecting the step
@@ -219,8 +224,8 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
             winvf[j] = winv0f[j]
         _hold(xn, vh, t1, edge_len, winv, 0$pargs)
         lam[:] = 0.0
-        err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, False,
-                                         SHAKE_FINAL)
+        err, it, edge, err0 = shake_flat(xf, xnf, winvf, edge_len, cw, lam,
+                                         np.bool_(False), SHAKE_FINAL)
     freed = 0
     if HAS_GROUND and it >= 0:
         # read before a stale predictor is dropped: a rod at rest is held by the ground
@@ -255,7 +260,8 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
                 break
             freed = 0
             diag[1] += 1
-            err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, False, 0.0)
+            err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam,
+                                                  np.bool_(False), 0.0)
             if it2 < 0:
                 diag[4] = edge
                 diag[5] = err
@@ -281,7 +287,7 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
     _hold(x, v, t1, edge_len, winv, 1$pargs)
     # SHAKE has just split winvf into the work array (constraint kernels change winv at
     # stage 0 only)
-    velocity_projection_flat(xf, vf, winvf, cw, True)
+    velocity_projection_flat(xf, vf, winvf, cw, np.bool_(True))
     if HAS_CONTACT:
         # restitution 0 where the rod touches itself (an unsettled active set leaves the
         # velocities of its last round and is counted)

@@ -174,6 +174,9 @@ def first_crossing_frames(positions, s_nodes, cap_params):
         Frame indices, -1 where there is no crossing. The interface is not tested on
         frame 0 (the release state, where it rests on the straight rod's chord).
     """
+    # the flags and bounds of the crossing tests are passed as np.bool_ / np.int64: a
+    # constant argument of a call from compiled code is typed as a literal, and numba
+    # compiles the callee once per literal value (here once for both tests)
     n_frames = positions.shape[0]
     n = positions.shape[1]
     k_rod = -1
@@ -187,12 +190,14 @@ def first_crossing_frames(positions, s_nodes, cap_params):
             break
         pos = positions[k]
         _segment_boxes(pos, box, bbox)
-        if k_rod < 0 and _any_crossing(pos, pos, True, 0, n, box, bbox):
+        if k_rod < 0 and _any_crossing(pos, pos, np.bool_(True), np.int64(0), n, box,
+                                        bbox):
             k_rod = k
         if k_if < 0 and k > 0:
             p = cap_params[k]
             _interface_points(pos, s_nodes, p[0], p[1], p[2], p[3], grad, iface)
-            if _any_crossing(iface, pos, False, 1, INTERFACE_POINTS - 2, box, bbox):
+            if _any_crossing(iface, pos, np.bool_(False), np.int64(1),
+                             np.int64(INTERFACE_POINTS - 2), box, bbox):
                 k_if = k
     return k_rod, k_if
 
@@ -212,7 +217,8 @@ def _interface_crossings(x, s_nodes, cap, out_s):
     pairs = np.empty((out_s.shape[0], 2), dtype=np.int64)
     _segment_boxes(x, box, bbox)
     _interface_points(x, s_nodes, cap[0], cap[1], cap[2], cap[3], grad, iface)
-    m = _crossing_pairs(iface, x, False, 1, INTERFACE_POINTS - 2, box, bbox, pairs)
+    m = _crossing_pairs(iface, x, np.bool_(False), np.int64(1),
+                        np.int64(INTERFACE_POINTS - 2), box, bbox, pairs)
     for k in range(m):
         i, j = pairs[k, 0], pairs[k, 1]
         ax, az = iface[i, 0], iface[i, 1]

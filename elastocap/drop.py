@@ -180,11 +180,11 @@ def cap_half_angle(a):
     if m <= _PI / 8.0:
         # f(t) ~ t/6 for small t; f(pi/2) = pi/8
         t0 = min(6.0 * m, _HALF_PI)
-        t = _newton_log(log_a, t0, 0.0, _HALF_PI, False)
+        t = _newton_log(log_a, t0, 0.0, _HALF_PI, np.bool_(False))
         return sgn * t, sgn * math.sin(t), math.cos(t)
     # f ~ pi / (4 sig^2) as sig -> 0
     s0 = min(math.sqrt(_PI / (4.0 * m)), _HALF_PI)
-    sig = _newton_log(log_a, s0, 0.0, _HALF_PI, True)
+    sig = _newton_log(log_a, s0, 0.0, _HALF_PI, np.bool_(True))
     return sgn * (_PI - sig), sgn * math.sin(sig), -math.cos(sig)
 
 

@@ -264,7 +264,8 @@ def _turning_measures(positions, out):
             bx = positions[k, i + 2, 0] - positions[k, i + 1, 0]
             bz = positions[k, i + 2, 1] - positions[k, i + 1, 1]
             ang[i] = math.atan2(ax * bz - az * bx, ax * bx + az * bz)
-        out[k] = _pairwise_sum(ang, 0, n - 2) / math.pi
+        # np.int64(0), not 0: a literal argument would compile its own specialisation
+        out[k] = _pairwise_sum(ang, np.int64(0), n - 2) / math.pi
     return out
 
 
