@@ -6,21 +6,28 @@ system, from ``os.wait4``) and wall time are read by this process.
 
 1. ``first impact``: ``run_impact`` of ``supp-fig5`` with every cache empty, what a fresh
    install pays (the CLI's ``elastocap impact supp-fig5`` adds only the output).
-2. ``new stepper``: the package's numba kernels already cached (a first child compiles
+2. ``cli first impact`` / ``cli second impact``: ``elastocap impact supp-fig5 --json``
+   as the quick start runs it (output files and figure included), with every cache
+   empty, then again in a second process on the caches the first filled; besides CPU and
+   wall time, the compile time the command reports (``compile_time_s``: generating,
+   loading and compiling the stepper).
+3. ``new stepper``: the package's numba kernels already cached (a first child compiles
    them, through a different effect combination), a child compiles the RATTLE and the
    midpoint stepper of a strip on the ground (capillary + gravity + ground + damping,
-   fig3-strip) and of a bare rod (bending only), one step each.
+   fig3-strip) and of a bare rod (bending only), one step each (left out with
+   ``--first-only``).
 
 With ``--baseline REV`` (a git revision, or a folder holding a checkout) the same cases run
 from that tree too, in alternated order, ``--repeat`` rounds: medians and the ratio
 (this tree / baseline) are printed.
 
-Run: ``python benchmarks/compile_speed.py [--baseline REV|DIR] [--repeat K]``.
+Run: ``python benchmarks/compile_speed.py [--baseline REV|DIR] [--repeat K] [--first-only]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import subprocess
@@ -71,27 +78,39 @@ else:
 NEW_STEPPER_CASES = ("rattle:strip", "midpoint:strip", "rattle:bare", "midpoint:bare")
 
 
-def child(tree, case, numba_dir, stepper_dir):
-    """(CPU s, wall s) of one child process."""
+def child(tree, case, numba_dir, stepper_dir, out_dir=None):
+    """(CPU s, wall s, compile s) of one child process: ``case`` the snippet's case, or
+    with ``out_dir`` the command line's ``impact`` of ``case`` (a scene) into it, whose
+    reported compile time is read from its JSON (NaN for the snippet's cases)."""
     env = dict(os.environ, PYTHONPATH=tree, NUMBA_CACHE_DIR=numba_dir,
                DYNAMICS_CACHE_DIR=stepper_dir)
+    if out_dir is None:
+        cmd = [sys.executable, "-c", SNIPPET, tree, case]
+    else:
+        cmd = [sys.executable, "-m", "elastocap", "impact", case, "--out", out_dir,
+               "--progress", "none", "--json"]
     t0 = time.perf_counter()
-    p = subprocess.Popen([sys.executable, "-c", SNIPPET, tree, case], env=env, cwd=tree,
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p = subprocess.Popen(cmd, env=env, cwd=tree, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
     _, status, ru = os.wait4(p.pid, 0)
     wall = time.perf_counter() - t0
     out, err = p.communicate()
     if os.waitstatus_to_exitcode(status) != 0:
         raise RuntimeError(f"{case} in {tree} failed:\n{err.decode()[-3000:]}")
-    return ru.ru_utime + ru.ru_stime, wall
+    comp = json.loads(out)["compile_time_s"] if out_dir is not None else float("nan")
+    return ru.ru_utime + ru.ru_stime, wall, comp
 
 
 def one_round(tree, cases):
-    """{case: (cpu, wall)} for one tree, fresh caches."""
+    """{case: (cpu, wall, compile)} for one tree, fresh caches."""
     res = {}
     with tempfile.TemporaryDirectory() as tmp:
         res["first impact"] = child(tree, "first-impact", os.path.join(tmp, "n0"),
                                     os.path.join(tmp, "s0"))
+        # the command line, cold then warm (the second process on the caches of the first)
+        nd, sd, od = (os.path.join(tmp, k) for k in ("nc", "sc", "oc"))
+        res["cli first impact"] = child(tree, "supp-fig5", nd, sd, od)
+        res["cli second impact"] = child(tree, "supp-fig5", nd, sd, od)
         kernels = os.path.join(tmp, "n1")
         child(tree, "warm-kernels", kernels, os.path.join(tmp, "s1"))
         for k, case in enumerate(cases):
@@ -106,7 +125,10 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--baseline", help="git revision or folder to compare against")
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--first-only", action="store_true",
+                    help="only the first impact and the command line's two impacts")
     args = ap.parse_args(argv)
+    cases = () if args.first_only else NEW_STEPPER_CASES
     trees = {"this tree": ROOT}
     tmp = None
     if args.baseline:
@@ -120,25 +142,26 @@ def main(argv=None):
     try:
         for r in range(args.repeat):
             for label in (trees if r % 2 == 0 else list(trees)[::-1]):
-                results[label].append(one_round(trees[label], NEW_STEPPER_CASES))
+                results[label].append(one_round(trees[label], cases))
                 print(f"round {r + 1} {label}: " + ", ".join(
                     f"{c} {v[0]:.1f}" for c, v in results[label][-1].items()), flush=True)
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
-    print(f"\nCPU s (wall s), medians of {args.repeat} rounds, fresh caches per case; "
-          f"load average at the end {os.getloadavg()[0]:.1f}")
-    cases = list(results["this tree"][0])
-    head = f"{'case':28s}" + "".join(f"{k:>22s}" for k in trees)
-    print(head + ("   ratio" if len(trees) > 1 else ""))
-    for c in cases:
-        med = {k: (float(np.median([r[c][0] for r in results[k]])),
-                   float(np.median([r[c][1] for r in results[k]]))) for k in trees}
-        line = f"{c:28s}" + "".join(f"{m[0]:13.1f} ({m[1]:5.1f})" for m in med.values())
+    print(f"\nCPU s (wall s) [reported compile s], medians of {args.repeat} rounds, fresh "
+          f"caches per case; load average at the end {os.getloadavg()[0]:.1f}")
+    head = f"{'case':30s}" + "".join(f"{k:>30s}" for k in trees)
+    print(head + ("   ratio CPU, wall, compile" if len(trees) > 1 else ""))
+    for c in results["this tree"][0]:
+        med = {k: [float(np.median([r[c][j] for r in results[k]])) for j in range(3)]
+               for k in trees}
+        line = f"{c:30s}" + "".join(
+            f"{m[0]:14.1f} ({m[1]:5.1f})" + (f" [{m[2]:5.1f}]" if m[2] == m[2] else " " * 8)
+            for m in med.values())
         if len(trees) > 1:
-            line += f"   {med['this tree'][0] / med['baseline'][0]:.2f}"
+            a, b = med["this tree"], med["baseline"]
+            line += "   " + ", ".join(f"{a[j] / b[j]:.2f}" for j in range(3) if a[j] == a[j])
         print(line)
-
 
 if __name__ == "__main__":
     main()
