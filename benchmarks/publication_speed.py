@@ -201,7 +201,32 @@ def bench(trees, scene, base, ks, repeat, tmp, title):
             same = np.array_equal(load(a[1]["npz"])["M"], load(b[1]["npz"])["M"])
             print(f"{c:18s} {a[0]['loop'] / b[0]['loop']:6.2f}   "
                   f"{'bit-identical M(t)' if same else 'differs'}")
+    print()
+    for line in verdict(table, [c for c, _ in cs]):
+        print(line)
     return table
+
+
+def verdict(table, labels, tree="this tree"):
+    """Which cases are as accurate as RATTLE at its automatic dt (the first case), and the
+    cheapest of them: on the first window (the scheme's error, before the impacts on the
+    ground) and on the final state (what an outcome reads)."""
+    ref = table[labels[0], tree]
+    out = []
+    for what, keys in (("up to t = %g" % WINDOWS[0], [("M", WINDOWS[0]), ("xL", WINDOWS[0])]),
+                       ("at the end", [("M", "end"), ("xL", "end")])):
+        ok = [c for c in labels[2:] if table[c, tree][1]["status"] == "at_rest"
+              and all(abs(table[c, tree][2][k]) <= abs(ref[2][k]) for k in keys)]
+        tol = ", ".join(f"|d{k[0]}| <= {abs(ref[2][k]):.1e}" for k in keys)
+        if ok:
+            best = min(ok, key=lambda c: table[c, tree][0]["loop"])
+            out.append(f"as accurate as '{labels[0]}' {what} ({tol}): {', '.join(ok)}; "
+                       f"the cheapest, {best}, {table[best, tree][0]['loop']:.2f} s against "
+                       f"{ref[0]['loop']:.2f} s")
+        else:
+            out.append(f"as accurate as '{labels[0]}' {what} ({tol}): none of the midpoint "
+                       f"runs ({ref[0]['loop']:.2f} s)")
+    return out
 
 
 def main(argv=None):
