@@ -28,8 +28,9 @@ Trace (:func:`trace_discrete_branch`)
 
     with c = B / h^3 (the gaps compared as the force that would cause them; written
     between consecutive held nodes, which makes the rows of a flat stretch free to
-    factorize, :func:`active_set_problem`). The Jacobian is exact (the Lagrangian Hessian bordered by the constraint gradients); dF/dDelta is a
-    centred difference of the residual. The fixed-set branch is a branch of contact
+    factorize, :func:`active_set_problem`). The Jacobian is exact (the Lagrangian
+    Hessian bordered by the constraint gradients); dF/dDelta is a centred difference of
+    the residual. The fixed-set branch is a branch of contact
     equilibria only while every held node pushes (r_k >= 0) and every other node stays
     above the ground (z_k >= 0). The first violation is an event located by Brent's method
     on the arclength (to ~1e-12): a lift-off (r_k crosses 0) or a touch-down (z_k crosses
@@ -343,7 +344,8 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
     problem : continuation.FunctionProblem
         Unknowns v = (u, r_A), shape (n + 1 + |A|,); ``hessian`` / ``constraint_jacobian``
         give the Lagrangian Hessian (N, N) and the held constraints' gradients (|A|, N),
-        N = n + 1, as in F (below; for the stability index); observables ``energy``, ``min_reaction`` (force), ``min_gap`` (length).
+        N = n + 1, as in F (below; for the stability index); observables ``energy``,
+        ``min_reaction`` (force), ``min_gap`` (length).
     tools : dict
         ``split(v) -> (u, r)`` with r of shape (n + 1,), ``join(u, r) -> v``, ``A`` (the
         held node indices), ``c`` (the gap scale B / h^3).
