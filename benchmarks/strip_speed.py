@@ -1,7 +1,7 @@
 """Speed of `elastocap branches fig3-strip --set drop.distance_from_end=X`, side by side.
 
     python3 benchmarks/strip_speed.py [--x 2] [--n N] [--repeat 3] [--baseline SRC]
-                                      [--profile]
+                                      [--save DIR] [--profile]
 
 Runs the command itself (``python -m elastocap branches fig3-strip --set
 drop.distance_from_end=X [--set numerics.n_edges=N] --json --out TMP``; default resolution:
@@ -12,6 +12,8 @@ the medians. With ``--baseline SRC`` (another source tree, e.g. ``git archive ma
 elastocap continuation dynamics | tar -x -C /tmp/base``) the runs of the two trees
 alternate (this tree, the baseline, this tree, ...), and the medians of both and their
 ratios (baseline / this tree) are printed, with the window each computed.
+``--save DIR`` keeps each run's JSON report as ``DIR/{tree}-x{X}-{k}.json`` (tree ``this``
+or ``baseline``), to compare the two trees' folds, events and windows.
 ``--profile`` runs the trace once in this process under cProfile instead and prints the
 25 most expensive functions (cumulative).
 """
@@ -33,8 +35,9 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parents[1]
 
 
-def run_cli(src: Path, x: float, n: int | None) -> dict:
-    """One run of the command from source tree ``src``: cpu, wall (s) and the window."""
+def run_cli(src: Path, x: float, n: int | None, save: Path | None = None) -> dict:
+    """One run of the command from source tree ``src``: cpu, wall (s) and the window; the
+    JSON report written to ``save`` if given."""
     with tempfile.TemporaryDirectory(prefix="strip-speed-") as tmp:
         argv = [sys.executable, "-m", "elastocap", "branches", "fig3-strip", "--set",
                 f"drop.distance_from_end={x:g}", "--json", "--out", str(Path(tmp) / "b")]
@@ -51,6 +54,8 @@ def run_cli(src: Path, x: float, n: int | None) -> dict:
     if proc.returncode != 0:
         raise SystemExit(f"{src}: the command failed (exit {proc.returncode})")
     rep = json.loads(out)
+    if save is not None:
+        save.write_text(out)
     w = rep["window"]
     return {"cpu": ru.ru_utime + ru.ru_stime, "wall": wall,
             "open_max": w["open_max"]["value"], "open_max_err": w["open_max"]["error_estimate"],
@@ -68,6 +73,7 @@ def main():
     ap.add_argument("--n", type=int, default=None)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--baseline", metavar="SRC", default=None)
+    ap.add_argument("--save", metavar="DIR", default=None)
     ap.add_argument("--profile", action="store_true")
     a = ap.parse_args()
     if a.profile:
@@ -91,9 +97,13 @@ def main():
         print(f"x = {x:g}, n = {a.n or 'default (198, refined at 297)'}: "
               f"{a.repeat} runs per tree, alternating", flush=True)
         runs = {name: [] for name, _ in trees}
-        for _k in range(a.repeat):
+        for k in range(a.repeat):
             for name, src in trees:
-                r = run_cli(src, x, a.n)
+                save = None
+                if a.save:
+                    Path(a.save).mkdir(parents=True, exist_ok=True)
+                    save = Path(a.save) / f"{name.split()[0]}-x{x:g}-{k}.json"
+                r = run_cli(src, x, a.n, save)
                 runs[name].append(r)
                 print(_line(name, r), flush=True)
         med = {name: {k: statistics.median(r[k] for r in rs) for k in ("cpu", "wall")}

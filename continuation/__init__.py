@@ -59,6 +59,10 @@ FoldProblem(family, b, c)
     continue_fold; exposed for users who drive it themselves).
 inertia_negative(H, C=None) -> int
     The stability-index kernel (see below).
+factorize(A) -> Factor or None
+    The LU kernel of the correctors: ``solve(b, trans=False)``, ``det_sign()``; None
+    for a singular or non-finite matrix. Dense rows with a single nonzero are pivoted
+    on before LAPACK (a constraint fixing one unknown costs no LU work).
 continuation.examples
     Reference problems with known answers: Bratu (FD order 2 or Chebyshev),
     Pitchfork, Cusp / cusp_family, BRATU_FOLD.
@@ -86,7 +90,8 @@ Stability index
 With ``hessian`` (N x N, symmetric) and optionally ``constraint_jacobian`` C
 (m x N, full row rank), the index is the number of negative eigenvalues of the
 Hessian restricted to null(C), computed as the inertia of the KKT matrix
-``[[H, C^T], [C, 0]]`` minus m (an LDL^T factorization; no null-space basis).
+``[[H, C^T], [C, 0]]`` minus m (an LDL^T factorization; no null-space basis). Rows of
+C with a single nonzero fix that unknown and are eliminated first.
 """
 
 from ._branch import (
@@ -103,7 +108,7 @@ from ._branch import (
 )
 from ._core import continue_branch, locate_fold, switch_branch
 from ._fold import FoldProblem, continue_fold, fold_crossings
-from ._linalg import BandedJacobian, inertia_negative
+from ._linalg import BandedJacobian, Factor, factorize, inertia_negative
 from ._problem import (
     FiniteDifferenceWarning,
     FunctionProblem,
@@ -128,7 +133,7 @@ __all__ = [
     "continue_branch", "locate_fold", "switch_branch", "continue_fold", "FoldProblem",
     "fold_crossings", "BranchSearch", "SearchSettings", "SearchResult", "search_branches",
     "deflated_newton", "NewtonResult", "point_on_branch",
-    "check_jacobian", "inertia_negative", "Branch", "SpecialPoint",
+    "check_jacobian", "inertia_negative", "factorize", "Factor", "Branch", "SpecialPoint",
     "FiniteDifferenceWarning", "JacobianError",
     "MAX_STEPS", "PARAMETER_BOUND", "STEP_TOO_SMALL", "START_FAILED", "STOPPED",
     "NON_FINITE", "LOOP_CLOSED",

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from continuation import factorize
 from elastocap.strip.model import DiscreteStrip, flat_state
 
 __all__ = [
@@ -97,12 +98,38 @@ def _strong_weak(strip, eq):
 
 def _tangent_basis(strip, u, nodes) -> np.ndarray:
     """Orthonormal basis (N, N - rank) of the null space of the gradients of z_k, k in
-    ``nodes`` (the identity without contacts)."""
-    G = strip.constraint_jacobian(u)[np.asarray(nodes)]
-    if not G.shape[0]:
-        return np.eye(strip.size)
-    _q, sv, vt = np.linalg.svd(G, full_matrices=True)
-    return vt[int(np.sum(sv > 1e-12 * sv[0])):].T
+    ``nodes`` (bool mask or indices; the identity without contacts).
+
+    The rows are taken as the gradients of z at the first node and of the differences of
+    z between consecutive nodes (the same null space): where two neighbours k, k + 1 are
+    both held the row is h cos theta_k at theta_k alone, which fixes that unknown, so the
+    SVD runs only on the other rows and unknowns (a flat stretch on the ground adds
+    nothing to it).
+    """
+    k = np.asarray(nodes)
+    k = np.flatnonzero(k) if k.dtype == bool else k.astype(np.int64)
+    N = strip.size
+    if not k.size:
+        return np.eye(N)
+    G = strip.constraint_jacobian(u, k)
+    D = G.copy()
+    D[1:] -= G[:-1]
+    nz = D != 0.0
+    single = np.count_nonzero(nz, axis=1) == 1
+    cols = np.argmax(nz[single], axis=1)
+    keep = np.ones(N, dtype=bool)
+    if np.unique(cols).size == cols.size:
+        keep[cols] = False
+        D = D[~single]
+    D = D[:, keep]
+    if D.shape[0]:
+        _q, sv, vt = np.linalg.svd(D, full_matrices=True)
+        basis = vt[int(np.sum(sv > 1e-12 * sv[0])):].T
+    else:
+        basis = np.eye(int(np.count_nonzero(keep)))
+    Z = np.zeros((N, basis.shape[1]))
+    Z[keep] = basis
+    return Z
 
 
 @dataclass
@@ -197,14 +224,14 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
     for it in range(1, max_iter + 1):
         E, g, H = strip.derivatives(u)
         z = strip.heights(u)
-        G = strip.constraint_jacobian(u)
         # Lagrangian Hessian: - sum_k r_k d^2 z_k = diag_j(h sin theta_j sum_{k > j} r_k)
         rs = np.cumsum(r[::-1])[::-1]
         W = H
         W[np.arange(1, N), np.arange(1, N)] += strip.h * np.sin(u[1:]) * rs[1:]
         A = np.flatnonzero(act)
         fi = np.flatnonzero(free)
-        Ga = G[np.ix_(A, fi)]
+        GA = strip.constraint_jacobian(u, A)
+        Ga = GA[:, fi]
         nf, na = fi.size, A.size
         K = np.zeros((nf + na, nf + na))
         K[:nf, :nf] = W[np.ix_(fi, fi)]
@@ -213,18 +240,23 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
         # solve for the change of the multipliers, not the multipliers themselves: the
         # KKT matrix is ill-conditioned (B/h^3 against q h), and a correction keeps the
         # final residual at the accuracy of its evaluation (1e-12), not of the solve (1e-9)
-        rhs = np.concatenate([-(g - G[A].T @ r[A])[fi], -z[A]])
-        try:
-            sol = np.linalg.solve(K, rhs)
-        except np.linalg.LinAlgError:
+        rhs = np.concatenate([-(g - strip.reaction_forces(u, np.where(act, r, 0.0)))[fi],
+                              -z[A]])
+        # the contact rows taken between consecutive contacts (the same solution): where
+        # two neighbours are held the row has one nonzero, which factorize pivots on first
+        K[nf + 1:, :nf] -= Ga[:-1]
+        rhs[nf + 1:] += z[A[:-1]]
+        fac = factorize(K)
+        if fac is None:
             status, msg = "singular", "singular KKT matrix; try another initial contact set"
             break
+        sol = fac.solve(rhs)
         du = np.zeros(N)
         du[fi] = sol[:nf]
         r_new = np.zeros(N)
         r_new[A] = r[A] - sol[nf:]
         # residual at the current point with the new multipliers: stop test
-        stat = g - G.T @ r_new
+        stat = g - strip.reaction_forces(u, r_new)
         res = max(float(np.max(np.abs(stat[fi]))), zscale * float(max(0.0, -np.min(z))),
                   zscale * float(np.max(np.abs(z[A]))) if na else 0.0)
         # relative to the largest generalized force (q L on z_0, gamma on the wet edges):
@@ -279,7 +311,8 @@ def stability(strip: DiscreteStrip, eq: Equilibrium) -> tuple[int, int]:
     H = lagrangian_hessian(strip, eq.u, eq.reactions)
     strong, weak = _strong_weak(strip, eq)
     Z = _tangent_basis(strip, eq.u, strong)
-    Hr = Z.T @ H @ Z
+    on = np.flatnonzero(np.any(Z != 0.0, axis=1))  # the unknowns the contacts leave free
+    Hr = Z[on].T @ H[np.ix_(on, on)] @ Z[on]
     if Hr.shape[0] == 0:  # the contacts fix every unknown (the flat strip)
         return 0, int(np.count_nonzero(weak))
     ev = np.linalg.eigvalsh(0.5 * (Hr + Hr.T))

@@ -26,9 +26,11 @@ Trace (:func:`trace_discrete_branch`)
 
         grad E(u) - sum_{k in A} r_k grad z_k(u) = 0,      c z_k(u) = 0  (k in A),
 
-    with c = B / h^3 (the gaps compared as the force that would cause them). The Jacobian
-    is exact (the Lagrangian Hessian bordered by the constraint gradients); dF/dDelta is a
-    centred difference of the residual. The fixed-set branch is a branch of contact
+    with c = B / h^3 (the gaps compared as the force that would cause them; written
+    between consecutive held nodes, which makes the rows of a flat stretch free to
+    factorize, :func:`active_set_problem`). The Jacobian is exact (the Lagrangian
+    Hessian bordered by the constraint gradients); dF/dDelta is a centred difference of
+    the residual. The fixed-set branch is a branch of contact
     equilibria only while every held node pushes (r_k >= 0) and every other node stays
     above the ground (z_k >= 0). The first violation is an event located by Brent's method
     on the arclength (to ~1e-12): a lift-off (r_k crosses 0) or a touch-down (z_k crosses
@@ -87,6 +89,7 @@ from continuation import (
     SearchSettings,
     SpecialPoint,
     continue_branch,
+    factorize,
     inertia_negative,
 )
 from elastocap._version import __version__
@@ -341,10 +344,20 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
     problem : continuation.FunctionProblem
         Unknowns v = (u, r_A), shape (n + 1 + |A|,); ``hessian`` / ``constraint_jacobian``
         give the Lagrangian Hessian (N, N) and the held constraints' gradients (|A|, N),
-        N = n + 1; observables ``energy``, ``min_reaction`` (force), ``min_gap`` (length).
+        N = n + 1, as in F (below; for the stability index); observables ``energy``,
+        ``min_reaction`` (force), ``min_gap`` (length).
     tools : dict
         ``split(v) -> (u, r)`` with r of shape (n + 1,), ``join(u, r) -> v``, ``A`` (the
         held node indices), ``c`` (the gap scale B / h^3).
+
+    Notes
+    -----
+    The held constraints are written c z_{a_1} = 0 and c (z_{a_i} - z_{a_{i-1}}) = 0 for
+    the held nodes a_1 < a_2 < ... (the same conditions, rows changed by a unit lower
+    bidiagonal matrix, so Newton's iterates are the same): where two neighbours are held
+    the row has one nonzero, h cos theta of the edge between them, and the package's dense
+    factorization pivots on it first, so a stretch lying on the ground adds no LU work
+    (measured at x = 4, n = 297: 156 held nodes, LU of size 455 against 300).
     """
     act = np.asarray(active, dtype=bool)
     N = strip.size
@@ -379,8 +392,10 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
             return np.full(N + na, np.nan)
         u, r = split(v)
         _E, g, _H = s.derivatives(u, hessian=False)
-        G = s.constraint_jacobian(u)[A]
-        return np.concatenate([g - G.T @ r[A], c * s.heights(u)[A]])
+        zs = s.heights(u)
+        z = zs[A]
+        z[1:] -= zs[A[:-1]]
+        return np.concatenate([g - s.reaction_forces(u, r), c * z])
 
     def lagrangian_hessian(v, p):
         s = cache.at(p)
@@ -393,11 +408,12 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
     def jacobian(v, p):
         s = cache.at(p)
         u, _r = split(v)
-        G = s.constraint_jacobian(u)[A]
+        G = s.constraint_jacobian(u, A)
         J = np.zeros((N + na, N + na))
         J[:N, :N] = lagrangian_hessian(v, p)
         J[:N, N:] = -rs * G.T
         J[N:, :N] = c * G
+        J[N + 1:, :N] -= c * G[:-1]
         return J
 
     c0, h = strip.L - strip.x_end, strip.h
@@ -422,7 +438,12 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
                      - residual(v, p + 2.0 * sg * e)) / (2.0 * e)
 
     def constraint_jacobian(v, p):
-        return cache.at(p).constraint_jacobian(v[:N])[A]
+        # the rows of the held constraints in F (see the docstring); inertia_negative
+        # eliminates those with one nonzero before its LDL^T
+        G = cache.at(p).constraint_jacobian(v[:N], A)
+        D = G.copy()
+        D[1:] -= G[:-1]
+        return D
 
     def observables(v, p):
         s = cache.at(p)
@@ -503,14 +524,13 @@ def _tangent(prob, v, p, orient):
     """
     Jv, fp = prob.jacobian(v, p), prob.dfdp(v, p)
     t = None
-    try:
-        w = np.linalg.solve(Jv, -fp)
+    fac = factorize(Jv.copy())
+    if fac is not None:
+        w = fac.solve(-fp)
         if np.all(np.isfinite(w)) and np.linalg.norm(Jv @ w + fp) <= 1e-8 * (
                 np.linalg.norm(fp) + np.linalg.norm(Jv, np.inf) * np.linalg.norm(w)):
             t = np.append(w, 1.0)
             t /= np.linalg.norm(t)
-    except np.linalg.LinAlgError:
-        t = None
     if t is None:
         _U, _s, Vt = np.linalg.svd(np.column_stack([Jv, fp]))
         t = Vt[-1]
@@ -912,8 +932,8 @@ class ContactProblem(Problem):
             return np.full(2 * self.N, np.nan)
         u, r = self.split(v)
         g = s.gradient(u)
-        G = s.constraint_jacobian(u)
-        return np.concatenate([g - G.T @ r, np.minimum(r, self.c * s.heights(u))])
+        return np.concatenate([g - s.reaction_forces(u, r),
+                               np.minimum(r, self.c * s.heights(u))])
 
     def jacobian(self, v, p):
         s = self._cache.at(p)

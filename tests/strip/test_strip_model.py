@@ -22,7 +22,8 @@ from elastocap.strip.model import (
     flat_state,
     shoelace_derivatives,
 )
-from elastocap.strip.solve import minimize_energy, solve_equilibrium
+from elastocap.strip.solve import minimize_energy, solve_equilibrium, stability, wrapped_state
+from elastocap.strip.trace import active_set_problem
 
 L = 14.3
 
@@ -117,6 +118,55 @@ def test_constraint_jacobian_bit_identical_to_the_triangle_and_the_heights():
         fd = np.column_stack([(S.heights(u + e * v) - S.heights(u - e * v)) / (2 * e)
                               for v in np.eye(n + 1)])
         assert np.max(np.abs(G - fd)) < 1e-9
+
+
+def test_constraint_rows_and_reaction_forces_against_the_full_jacobian():
+    # rows of chosen nodes equal the rows of the full matrix (the same bits); G^T r by
+    # suffix sums equals the product with the full matrix to round-off
+    rng = np.random.default_rng(5)
+    for n in (4, 37, 198):
+        S = DiscreteStrip(n, L, 2.0, 1.1, 0.36, 40.0)
+        u = random_state(S, seed=n, amp=0.3)
+        G = S.constraint_jacobian(u)
+        k = np.sort(rng.choice(n + 1, (n + 1) // 2, replace=False))
+        assert np.array_equal(S.constraint_jacobian(u, k), G[k])
+        r = rng.uniform(0.0, 1.0, n + 1)
+        assert np.max(np.abs(S.reaction_forces(u, r) - G.T @ r)) < 1e-12 * n
+
+
+@pytest.mark.parametrize("x, delta", [(4.0, 0.3), (4.0, 1.0), (2.0, 1.1)])
+def test_stability_index_against_the_projected_hessian(x, delta):
+    # the index of real strip states (the fold over the drop and the deposition; a flat
+    # stretch of held nodes gives rows with one nonzero, eliminated before the LDL^T /
+    # the SVD) against an independent reference: the eigenvalues of the Lagrangian
+    # Hessian projected on scipy's null space of the full rows of the held nodes; also at
+    # index-1 and index-2 states made by flipping the Hessian's sign along a free unknown
+    from scipy.linalg import null_space
+
+    from continuation import inertia_negative
+
+    S = discrete_strip_for(load_scene("fig3-strip", {"drop.distance_from_end": x}), 60)
+    S = S.with_(delta=delta)
+    for eq in (minimize_energy(S, flat_state(S)), wrapped_state(S)):
+        assert eq.success
+        prob, tools = active_set_problem(S, eq.active)
+        v = tools["join"](eq.u, eq.reactions)
+        H = prob.hessian(v, delta)
+        C = prob.constraint_jacobian(v, delta)
+        Z = null_space(S.constraint_jacobian(eq.u)[eq.active])
+        assert Z.shape[1] == S.size - eq.contacts  # the held rows have full rank
+        ones = int(np.count_nonzero(np.count_nonzero(C, axis=1) == 1))
+        assert ones > eq.contacts // 2  # the elimination is exercised
+        ev = np.linalg.eigvalsh(Z.T @ H @ Z)
+        assert np.min(np.abs(ev)) > 1e-6 * np.max(np.abs(ev))
+        assert inertia_negative(H, C) == int(np.sum(ev < 0)) == stability(S, eq)[0]
+        # a large negative curvature added along the unknown the contacts leave most free:
+        # one more negative direction (a rank-one change)
+        free = int(np.argmax(np.sum(Z * Z, axis=1)))
+        Hm = H.copy()
+        Hm[free, free] -= 1e3 * np.max(np.abs(H))
+        evm = np.linalg.eigvalsh(Z.T @ Hm @ Z)
+        assert inertia_negative(Hm, C) == int(np.sum(evm < 0)) == int(np.sum(ev < 0)) + 1
 
 
 def test_shoelace_derivatives_bit_identical_to_the_loop_and_against_the_area():
