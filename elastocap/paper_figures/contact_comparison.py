@@ -20,7 +20,8 @@ policies (``drop.interface_contact``):
 Every run is kept: the threshold runs in the sweep stores ``contact-comparison-nN.sqlite``,
 the others in ``contact-comparison-runs.jsonl`` (keyed by the scene digest and the code
 fingerprint of :mod:`elastocap.sweep.tasks`), so a second call recomputes nothing. Writes
-``contact-comparison.json``, ``contact-supp-fig5.png`` and ``contact-fig4-fig5.png``.
+``contact-comparison.json``, ``contact-supp-fig5.png``, ``contact-fig4-fig5.png`` and
+``contact-fig5Dprime.png``.
 """
 
 from __future__ import annotations
@@ -78,6 +79,8 @@ STRIP_EDGES_FINE = 200
 #: to (damping 0.1 gives a decay time of mu / damping = 10: 400 is 40 of them).
 FIG45_T_MAX = 100.0
 STRIP_T_MAX_LONG = 400.0
+#: A third resolution for D' with contact (see :func:`main`).
+DPRIME_CHECK_EDGES = 300
 #: Arc length (scene units) beyond which two points of the rod count as different arms:
 #: the closest approach of such pairs is the gap between the arms (about the drop's radius,
 #: sqrt(A / pi) = 0.69 on supp-fig5, so that points around one wrap are not counted).
@@ -371,11 +374,12 @@ def plot_supp(records: dict, deltas, configs, n_edges: int, path: Path):
 
 def plot_strip(records: dict, names, configs, path: Path, fast: bool):
     """Final shapes of the Fig 4/5 runs (columns), the configurations overlaid."""
+    from elastocap.criteria import companion_outcome
     from elastocap.figure import new_figure
 
     colors = {"no-contact": "k", "contact-ignore": "tab:blue", "contact-wet": "tab:red"}
     styles = {"no-contact": "-", "contact-ignore": "--", "contact-wet": ":"}
-    fig = new_figure((2.6 * len(names), 2.9))
+    fig = new_figure((2.6 * len(names), 2.4))
     axes = fig.subplots(1, len(names), squeeze=False)[0]
     for ax, name in zip(axes, names, strict=True):
         lines = []
@@ -388,7 +392,9 @@ def plot_strip(records: dict, names, configs, path: Path, fast: bool):
             s = np.linspace(0.0, sc.rod.length, len(x))
             x = x[s >= sc.rod.length - crop]
             ax.plot(x[:, 0], x[:, 1], color=colors[cfg], ls=styles[cfg], lw=1.3)
-            lines.append(f"{cfg}: {rec['outcome']}")
+            comp = companion_outcome(np.asarray(rec["final_positions"]), sc).outcome
+            lines.append(f"{cfg}: {rec['outcome']}"
+                         + ("" if comp == rec["outcome"] else f" ({comp}, frame-indep.)"))
         ax.axhline(0.0, color="0.5", lw=0.6)
         ax.set_aspect("equal")
         ax.set_xticks([])
@@ -410,12 +416,14 @@ def plot_strip(records: dict, names, configs, path: Path, fast: bool):
 # --------------------------------------------------------------------------- main
 def main(out_dir, fast: bool = False) -> list[Path]:
     """Writes ``contact-comparison.json``, ``contact-supp-fig5.png``,
-    ``contact-fig4-fig5.png`` (and the stores of its runs)."""
+    ``contact-fig4-fig5.png``, ``contact-fig5Dprime.png`` (not in fast mode) and the stores
+    of its runs. ``fast``: 50 edges, two configurations, one Delta, fig4B only."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     cache = RunCache(out / RUNS_FILE)
     if fast:  # smoke size: draft edges, two configurations, a coarse bracket
-        configs, plan, tol = ("no-contact", "d0.1-ignore"), {50: ("no-contact", "d0.1-ignore")}, 0.01
+        configs, tol = ("no-contact", "d0.1-ignore"), 0.01
+        plan = {50: configs}
         deltas, out_edges = (4.0,), (50,)
         strip_names, strip_edges = ("fig4B",), (None,)
     else:
@@ -492,27 +500,53 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     if not fast:
         # D' with contact as a frame strip (as fig5Dprime.png without): run again for its
         # frames (the cache keeps final shapes only)
+        from elastocap.criteria import companion_outcome
         from elastocap.frames import frame_strip
         from elastocap.impact import run_impact
 
-        sc = strip_scene("fig5Dprime", "contact-ignore", None, fast, t_max=STRIP_T_MAX_LONG)
+        # at 200 edges: the 133-edge run ends in another shape, 200 and 300 agree
+        sc = strip_scene("fig5Dprime", "contact-ignore", STRIP_EDGES_FINE, fast,
+                         t_max=STRIP_T_MAX_LONG)
         res = run_impact(sc)
         png3 = out / "contact-fig5Dprime.png"
         frame_strip(res, sc, png3, k=8,
                     title=rf"fig5Dprime with contact ($h/\ell_{{eg}}$ = "
-                    rf"{THICKNESS['fig3-strip']:g}): {res.outcome}")
+                    rf"{THICKNESS['fig3-strip']:g}, {STRIP_EDGES_FINE} edges): {res.outcome} "
+                    "(paper's criterion), "
+                    f"{companion_outcome(res.simulation.positions[-1], sc).outcome} "
+                    "(frame-independent)")
         files.append(png3)
     js = out / "contact-comparison.json"
     scene = load_scene("supp-fig5")
-    write_json(js, record({"delta_star": dstar, "convergence": conv,
-                           "bracket_runs": bracket_runs, "outcomes": outcomes,
-                           "fig4_fig5": strip_rows},
-                          scene, fast=fast, thickness=THICKNESS, thickness_half=THICKNESS_HALF,
-                          configs=CONFIGS, strip_configs=STRIP_CONFIGS,
-                          dstar_grid=DSTAR_GRID, dstar_tol=tol, dstar_plan=plan,
-                          dstar_configs=DSTAR_CONFIGS,
-                          outcome_edges=out_edges, strip_edges=strip_edges,
-                          strip_t_max=(FIG45_T_MAX, STRIP_T_MAX_LONG),
-                          gap_rtol=GAP_RTOL, code_digest=cache.code), indent=1)
+
+    def write(extra):
+        write_json(js, record({"delta_star": dstar, "convergence": conv,
+                               "bracket_runs": bracket_runs, "outcomes": outcomes,
+                               "fig4_fig5": strip_rows, "fig5Dprime_check": extra},
+                              scene, fast=fast, thickness=THICKNESS,
+                              thickness_half=THICKNESS_HALF, configs=CONFIGS,
+                              strip_configs=STRIP_CONFIGS, dstar_grid=DSTAR_GRID, dstar_tol=tol,
+                              dstar_plan=plan, dstar_configs=DSTAR_CONFIGS,
+                              outcome_edges=out_edges, strip_edges=strip_edges,
+                              strip_t_max=(FIG45_T_MAX, STRIP_T_MAX_LONG),
+                              gap_rtol=GAP_RTOL, code_digest=cache.code), indent=1)
+
+    write(None)  # everything above, before the costly check below
+    if not fast:
+        # D' with contact reaches different final shapes at 133 and 200 edges: a third
+        # resolution (about 10 min), appended to the record when it is done
+        from elastocap.criteria import companion_outcome
+
+        sc = strip_scene("fig5Dprime", "contact-ignore", DPRIME_CHECK_EDGES, fast,
+                         t_max=STRIP_T_MAX_LONG)
+        rec = cache.run(sc)
+        x = np.asarray(rec["final_positions"])
+        row = {k: v for k, v in rec.items() if k != "final_positions"}
+        row["companion_outcome"] = companion_outcome(x, sc).outcome
+        row["shape_vs"] = {str(n or "fig3d"): shape_difference(x, np.asarray(
+            strip[("fig5Dprime", "contact-ignore", n, STRIP_T_MAX_LONG)]["final_positions"]))
+            for n in strip_edges if ("fig5Dprime", "contact-ignore", n, STRIP_T_MAX_LONG)
+            in strip}
+        write(row)
     files.append(js)
     return files
