@@ -179,6 +179,26 @@ def test_fig4_floppy_encapsulation(figs):
     assert s["fig4B"]["outcome"] == "encapsulated" == s["fig4B"]["companion_outcome"]
 
 
+def test_contact_comparison_fast(figs):
+    """Draft edges: contact never acts near Delta*, so the bisection's runs are the same run
+    for run; at Delta = 4 the rod without a thickness crosses itself, with one it does not
+    and keeps its gap; on the strip (fig4B) the folded layers rest exactly h apart."""
+    out, _, _ = figs
+    s = json.loads((out / "contact-comparison.json").read_text())
+    free, thick = s["delta_star"]
+    assert (free["low"], free["high"]) == (thick["low"], thick["high"])
+    assert thick["status"] == "bracketed" and thick["max_measure_difference_vs_no_contact"] == 0
+    assert 3.50 < free["delta_star"] < 3.55
+    rows = {r["config"]: r for r in s["outcomes"]}
+    assert rows["no-contact"]["rod_crossing_time"] is not None
+    assert rows["d0.1-ignore"]["rod_crossing_time"] is None
+    assert rows["d0.1-ignore"]["gap_at_rest_ok"] is True
+    strip = {r["config"]: r for r in s["fig4_fig5"]}
+    assert strip["contact-ignore"]["gap_at_rest"] == pytest.approx(0.0157, rel=1e-6)
+    assert strip["contact-ignore"]["rod_crossing_time"] is None
+    assert s["made_by"]["thickness"] == {"supp-fig5": 0.1, "fig3-strip": 0.0157}
+
+
 def test_energy_barrier_string_and_graph_agree(figs):
     out, _, _ = figs
     d = json.loads((out / "energy_barrier.json").read_text())

@@ -20,6 +20,7 @@ FIGURES = {
     "fig3d": "fig3d",
     "fig4-fig5": "fig4_fig5",
     "strip-bistability": "strip_bistability",
+    "contact-comparison": "contact_comparison",
 }
 
 

@@ -1,0 +1,84 @@
+"""The contact-comparison figure's pieces (elastocap.paper_figures.contact_comparison):
+a contact run checked by a brute-force distance that the contact solver does not use, the
+shape metric against closed forms, the convergence estimate on an exact sequence, and the
+run cache's round trip."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from elastocap.paper_figures import contact_comparison as cc
+from elastocap.scene import load_scene
+
+
+def _scene(thickness, delta=4.0, n=50):
+    return load_scene("supp-fig5", {"drop.wetted_length": delta, "rod.thickness": thickness,
+                                    "numerics.n_edges": n})
+
+
+@pytest.fixture(scope="module")
+def pair():
+    """supp-fig5 at Delta = 4, 50 edges, without and with the experiments' thickness."""
+    return cc.run_record(_scene(0.0)), cc.run_record(_scene(cc.THICKNESS["supp-fig5"]))
+
+
+def test_contact_run_never_crosses_and_keeps_its_gap(pair):
+    free, touch = pair
+    d = cc.THICKNESS["supp-fig5"]
+    # without a thickness the arms pass through each other (README: t = 10.45 at 100 edges;
+    # measured 10.448 at 50), their closest approach far below d
+    assert free["rod_crossing_time"] == pytest.approx(10.45, abs=0.05)
+    assert free["arm_gap_min"] < 0.1 * d
+    # with it: the crossing detector finds nothing, contact acted, and the brute-force
+    # node-segment distance (not the solver's) stays >= d on every frame (measured
+    # d (1 - 8e-15)) and at rest
+    assert touch["rod_crossing_time"] is None
+    assert touch["self_contact_steps"] > 0
+    assert touch["gap_min_frames"] >= d * (1.0 - cc.GAP_RTOL)
+    assert touch["gap_at_rest"] >= d * (1.0 - cc.GAP_RTOL)
+    assert touch["outcome"] == free["outcome"] == "encapsulated"
+    # contact changes the final shape a little (measured M 1.31631 -> 1.31726)
+    assert abs(touch["final_measure"] - free["final_measure"]) < 5e-3
+
+
+def test_shape_difference_closed_forms():
+    n, L, k = 64, 4.6, 0.7
+    s = np.linspace(0.0, L, n + 1)
+    straight = np.column_stack([s, 0.0 * s])
+    arc = np.column_stack([np.sin(k * s) / k, (1.0 - np.cos(k * s)) / k])
+    # edge angles of the arc are k at the midpoints: RMS of k (s_mid - mean) over n midpoints
+    expected = k * L * math.sqrt((1.0 - 1.0 / n**2) / 12.0)
+    assert cc.shape_difference(arc, straight) == pytest.approx(expected, rel=1e-12)
+    # rotated, reflected and reversed copies are the same shape
+    c, sn = math.cos(0.3), math.sin(0.3)
+    moved = arc @ np.array([[c, sn], [-sn, c]]) + 2.0
+    mirrored = moved[::-1] * np.array([1.0, -1.0])
+    assert cc.shape_difference(arc, moved) < 1e-13
+    assert cc.shape_difference(arc, mirrored) < 1e-13
+    # a coarser copy of the same arc differs by its discretisation only
+    coarse = arc[::2]
+    assert cc.shape_difference(arc, coarse) < 2e-2 * expected
+
+
+def test_convergence_recovers_an_exact_second_order_sequence():
+    seq = {n: 3.5 + 7.0 / n**2 for n in (100, 200, 400)}
+    conv = cc.convergence(seq)
+    assert conv["observed_order"] == pytest.approx(2.0, abs=1e-9)
+    assert conv["richardson"] == pytest.approx(3.5, abs=1e-12)
+    assert conv["error_estimate"] == pytest.approx(7.0 / 400**2, rel=1e-6)
+    assert cc.convergence({100: 3.5, 200: None, 400: 3.4})["richardson"] is None
+
+
+def test_run_cache_round_trips(tmp_path, monkeypatch):
+    sc = _scene(0.0, delta=2.5, n=50)
+    first = cc.RunCache(tmp_path / "runs.jsonl").run(sc)
+
+    def no_run(scene):
+        raise AssertionError("a cached run was computed again")
+
+    monkeypatch.setattr(cc, "run_record", no_run)
+    again = cc.RunCache(tmp_path / "runs.jsonl").run(sc)
+    assert again == json.loads(json.dumps(first))
+    assert again["outcome"] == "open" and len(again["final_positions"]) == 51
