@@ -75,6 +75,7 @@ __all__ = [
     "contact_positions",
     "contact_velocities",
     "segment_distances",
+    "contact_shortfall",
 ]
 
 #: Skin of the Verlet list, relative to the shortest edge: a larger skin means more listed
@@ -93,6 +94,16 @@ MAX_NEWTON = 30
 
 #: Rounds of the active-set loop (add violated pairs, drop pulling ones).
 MAX_ROUNDS = 30
+
+#: Relative edge-length residual ``|l**2 - l0**2| / (2 l0**2)`` at which the position
+#: stage's Newton iteration is declared diverged (failure 6): edges 25 % off their length
+#: are nowhere near the manifold the iteration linearises about, and it does not come back
+#: (measured on fig3-strip, 200 edges, midpoint at 8x the explicit bound, a step whose
+#: contacts start a thickness deep: 3e-14, then 88, 520, 8e3, ..., 3e222, NaN at the 12th
+#: iteration, which a NaN-blind convergence test then accepted).  The iteration starts
+#: with the edges at round-off, and its first correction is a projection of the size of
+#: the penetration, a fraction of an edge.
+EDGE_DIVERGED = 0.25
 
 #: Relative edge-length tolerance (as SHAKE's) and gap tolerance (relative to the shortest
 #: edge), each with a round-off floor ``TOL_FLOOR`` relative to the size of the coordinates
@@ -124,7 +135,8 @@ PGS_MAX_SWEEPS = 2000
 GUESS_PIVOTS = 4
 
 # rows of meta (int64)
-_NPAIRS, _VALID, _REBUILDS, _NACT, _MAXACT, _STEPS, _ROUNDS, _FAIL, _FORCES, _NVEL = range(10)
+(_NPAIRS, _VALID, _REBUILDS, _NACT, _MAXACT, _STEPS, _ROUNDS, _FAIL, _FORCES, _NVEL,
+ _NFAIL) = range(11)
 # rows of stat (float64)
 _GAPERR, _PENETRATION, _FTOTAL, _SKIN, _GMIN = range(5)
 
@@ -150,7 +162,12 @@ _FAILURES = {1: "more candidate pairs than the list holds (PAIRS_PER_NODE per no
              2: f"more than the {MAX_ACTIVE} simultaneous contacts the solver holds",
              3: "a singular projection system",
              4: "the Newton iteration on edge lengths and gaps did not converge",
-             5: "the active set of contacts did not settle"}
+             5: "the active set of contacts did not settle",
+             6: "the projection diverged (edge lengths far off, or a non-finite value)",
+             7: "a node moved deeper into the rod within one step than the contacts' "
+                "linearisation at the start of the step allows (max_depth)",
+             8: "the contacts turned too far within the step: a true gap ended short of the "
+                "thickness by more than the step accepts (max_shortfall)"}
 
 
 def contact_failure(ck, t, step, dt, substeps):
@@ -173,7 +190,10 @@ def contact_stats(ck, velocity_failures):
     ``self_contact_penetration`` deepest predicted penetration corrected, relative to the
     thickness; ``self_contact_force`` total magnitude of the contact forces of the last
     step (each pair counted once); ``self_contact_velocity_unsettled`` velocity stages whose
-    active set did not settle (their last round was kept).
+    active set did not settle (their last round was kept); ``self_contact_failures``
+    contact stages that failed (the midpoint method then rejects the step and retries it
+    with substeps; RATTLE stops) and ``self_contact_failure`` the reason of the last one
+    (empty when none failed).
     """
     meta, stat = ck.meta, ck.stat
     return {"self_contact_steps": int(meta[_STEPS]),
@@ -183,7 +203,10 @@ def contact_stats(ck, velocity_failures):
             "self_contact_gap_error": float(stat[_GAPERR]),
             "self_contact_penetration": float(stat[_PENETRATION]),
             "self_contact_force": float(stat[_FTOTAL]),
-            "self_contact_velocity_unsettled": int(velocity_failures)}
+            "self_contact_velocity_unsettled": int(velocity_failures),
+            "self_contact_failures": int(meta[_NFAIL]),
+            "self_contact_failure": (_FAILURES.get(int(meta[_FAIL]), "unknown failure")
+                                     if meta[_NFAIL] else "")}
 
 
 def exclusion_length(thickness):
@@ -195,7 +218,7 @@ def exclusion_length(thickness):
 #: The work arrays of the contact kernels (:func:`new_contact_work`), one named tuple that
 #: numba passes as one argument and whose fields it reads by name at compile time.
 ContactWork = collections.namedtuple("ContactWork", [
-    "meta",       # counters (int64, rows _NPAIRS ... _NVEL)
+    "meta",       # counters (int64, rows _NPAIRS ... _NFAIL)
     "stat",       # statistics (rows _GAPERR ... _GMIN)
     "xref",       # (n, 2) positions at the last rebuild of the pair list
     "s_arc",      # (n,) arc length of every node
@@ -239,7 +262,7 @@ def new_contact_work(edge_len):
     s_arc[1:] = np.cumsum(edge_len)
     P = PAIRS_PER_NODE * n
     return ContactWork(
-        np.zeros(10, dtype=np.int64), np.zeros(5), np.zeros((n, 2)), s_arc,
+        np.zeros(11, dtype=np.int64), np.zeros(5), np.zeros((n, 2)), s_arc,
         np.zeros((P, 2), dtype=np.int64), np.zeros((P, 4)),
         np.zeros(K, dtype=np.int64), np.zeros(K), np.zeros(K), np.zeros(m * K),
         np.zeros((K, K)), np.zeros((K, K)), np.zeros((14, max(m, K) + 2)),
@@ -830,7 +853,7 @@ def _listed_nothing_and_valid(xo, x, ck):
 
 
 @numba.njit(cache=True, inline="always")
-def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
+def contact_positions(xo, x, w, edge_len, lam, thickness, max_depth, ck):
     """Position stage: project ``x`` (edge lengths already satisfied, e.g. by SHAKE) onto
     the edge lengths and the non-penetration constraints linearised at ``xo``.
 
@@ -847,6 +870,10 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
         The edge multipliers, padded as SHAKE's (entry e + 1 for edge e): the corrections
         of the edge multipliers are added to it.
     thickness : float
+    max_depth : float
+        Deepest penetration of a linearised gap (length units) the projection accepts;
+        deeper, the step is refused (failure 7) before any projection (``np.inf``: no
+        limit).
     ck : ContactWork
         :func:`new_contact_work`.
 
@@ -855,7 +882,8 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
     int
         0 no contact, 1 contacts projected, -1 failure (``meta[_FAIL]``: 1 too many listed
         pairs, 2 too many contacts, 3 singular system, 4 Newton did not converge, 5 the
-        set of contacts did not settle).
+        set of contacts did not settle, 6 the projection diverged, 7 deeper than
+        ``max_depth``).
     """
     # inlined into the stepper: a step with nothing listed (the usual contact-free step)
     # costs one pass over the nodes and no call
@@ -863,11 +891,14 @@ def contact_positions(xo, x, w, edge_len, lam, thickness, ck):
         ck.meta[_NACT] = 0
         ck.stat[_GMIN] = np.inf
         return 0
-    return _project_positions(xo, x, w, edge_len, lam, thickness, ck)
+    st = _project_positions(xo, x, w, edge_len, lam, thickness, max_depth, ck)
+    if st < 0:
+        ck.meta[_NFAIL] += 1
+    return st
 
 
 @numba.njit(cache=True)
-def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
+def _project_positions(xo, x, w, edge_len, lam, thickness, max_depth, ck):
     """:func:`contact_positions` past its shortcut."""
     n = x.shape[0]
     m = n - 1
@@ -925,6 +956,9 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
     ck.stat[_GMIN] = gmin
     if worst == 0.0:
         return 0
+    if worst > max_depth:
+        ck.meta[_FAIL] = 7
+        return -1
     if worst > ck.stat[_PENETRATION] * thickness:
         ck.stat[_PENETRATION] = worst / thickness
     K = ck.active.shape[0]
@@ -983,14 +1017,19 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
                 ph = R[e, 0] * R[e, 0] + R[e, 1] * R[e, 1] - li2
                 phi[e] = -ph
                 r = abs(ph) / (2.0 * li2)
-                err_e = r if r > err_e else err_e
+                # (written so that a NaN propagates: ``r > err_e`` would skip it)
+                err_e = err_e if r <= err_e else r
             # complementarity residual: penetration, or a gap where the contact pushes
             err_g = 0.0
             for k in range(na):
                 g = _gap(x, ci[k, 0], ci[k, 1], cu[k], cn[k, 0], cn[k, 1], thickness)
                 rc[k] = -g
                 r = abs(g) if ck.mu_pos[k] > 0.0 else -g
-                err_g = r if r > err_g else err_g
+                err_g = err_g if r <= err_g else r
+            if not (err_e <= EDGE_DIVERGED and err_g < np.inf):
+                # diverged, or non-finite: refused before it reaches the state
+                ck.meta[_FAIL] = 6
+                return -1
             if err_e <= tol_e and err_g <= tol_g:
                 conv = True
                 break
@@ -1061,6 +1100,29 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, ck):
     return 1
 
 
+@numba.njit(cache=True)
+def contact_shortfall(x, thickness, max_shortfall, ck):
+    """Whether a step's contacts turned too far for their linearisation: the largest
+    shortfall ``(d - dist) / d`` of the true distance of a listed pair (node to segment,
+    not redundant) below the thickness ``d`` at ``x``, after a position stage whose gaps
+    were linearised at the start of the step (second order in the contacts' turn within
+    the step), exceeds ``max_shortfall``.  True records failure 8 (counted in
+    ``self_contact_failures``)."""
+    npairs = ck.meta[_NPAIRS]
+    worst = 0.0
+    for p in range(npairs):
+        if ck.mark[p] < 0:
+            continue
+        _u, qx, qz = _closest(x, ck.pairs[p, 0], ck.pairs[p, 1])
+        r = (thickness - math.sqrt(qx * qx + qz * qz)) / thickness
+        worst = worst if r <= worst else r
+    if worst <= max_shortfall:
+        return False
+    ck.meta[_FAIL] = 8
+    ck.meta[_NFAIL] += 1
+    return True
+
+
 @numba.njit(cache=True, inline="always")
 def _touch_row(ck, ci, cu, cn, eq, nc, K, i, j, u, qx, qz, dd, pushed, equality):
     """Node ``i`` touching segment ``j`` at ``u`` (``q`` from the closest point, ``|q| =
@@ -1093,7 +1155,8 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
     ``pos_factor``: the momentum per unit of a position multiplier over ``dt`` (1 for
     RATTLE, 2 for the midpoint rule), for the contact forces ``ck.forces`` (the mean force of
     the step on every node).  Returns the number of touching pairs, -1 on failure (the
-    velocities are then left as they came).
+    velocities are then left as they came), -2 when the projection made a velocity
+    non-finite (failure 6; the caller must discard the step).
     """
     # inlined into the stepper: nothing listed, or no projection this step and every
     # listed pair clear of contact, costs no call
@@ -1101,8 +1164,11 @@ def contact_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
         return 0
     if ck.meta[_NACT] == 0 and ck.stat[_GMIN] > TOUCH_SKIP * edge_len.min():
         return 0
-    return _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
-                               equal_active, ck)
+    nc = _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates,
+                             equal_active, ck)
+    if nc < -1:
+        ck.meta[_NFAIL] += 1
+    return nc
 
 
 @numba.njit(cache=True)
@@ -1237,6 +1303,11 @@ def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates
         for k in range(nc):
             bm[k] += dm[k]
             dm[k] = bm[k]
+    # the residual's maxima skip a NaN: a non-finite velocity is refused here (failure 6)
+    for i in range(n):
+        if not (abs(v[i, 0]) < np.inf and abs(v[i, 1]) < np.inf):
+            ck.meta[_FAIL] = 6
+            return -2
     na = 0
     for k in range(nc):
         if dm[k] != 0.0:

@@ -229,6 +229,29 @@ LOWRANK_MIN_RATE = 0.1
 #: save factorisations, and cost O(N) each in every solve).
 CONTACT_RANK = 8
 
+#: Deepest penetration of a self-contact's linearised gap, relative to the thickness, that
+#: a step's contact projection accepts; a step whose implicit solve ends deeper is rejected
+#: and retried with substeps (:data:`MAX_HALVINGS`).  A node that enters the rod by more
+#: than half the thickness within one step has moved, relative to the segment, beyond
+#: what the contact linearised at the start of the step describes: on fig3-strip (200
+#: edges, 8x the explicit bound) the free end slid 3 thicknesses (0.65 of an edge) a step
+#: over the other layer, its gaps 0.5-1.2 thicknesses deep, the energy rose at those steps
+#: and the projection finally diverged.  The tests' long-step contacts stay below 0.31
+#: (the folded rod at 4x: unchanged); a resting contact under a load enters by about
+#: ``a dt**2 / 2`` a step, far less (0.25 made fig3-strip's folded strip reject steps while
+#: it rested and never reach rest; 0.5 did not).
+CONTACT_MAX_DEPTH = 0.5
+
+#: Largest shortfall of a true node-segment distance below the thickness, relative to it,
+#: at the end of a step with a contact projection (:func:`dynamics.contact.contact_shortfall`);
+#: more, and the step is rejected and retried with substeps.  The shortfall is second
+#: order in the contact's turn within the step; the next step restores it, and the
+#: midpoint relation ``v1 = 2 D / dt - v0`` turns that correction into a kick.  Measured:
+#: the tests' midpoint collisions at 4x stay below 7.2e-3 (unchanged); a hairpin thrown
+#: at 8x fell 0.20 short and gained 1.3e-2 of its energy, with this check 9.1e-3 short
+#: and 2.1e-4.
+CONTACT_MAX_SHORTFALL = 1e-2
+
 #: (module, kernel) of the one constraint effect the implicit stepper handles.
 
 
@@ -1421,8 +1444,14 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
             wc[i, 1] = 0.0 if (HAS_GROUND and held[i] != 0.0) else winv[i, 1]
             xs[i, 0] = x[i, 0]
             xs[i, 1] = x[i, 1]
-        cst = contact_positions(x0, x, wc, edge_len, ck.vec[12], th, ck)
+        cst = contact_positions(x0, x, wc, edge_len, ck.vec[12], th, opts[9] * th, ck)
         if cst < 0:
+            diag[11] = 1.0
+            diag[8] = max_age
+            return -1
+        if cst > 0 and contact_shortfall(x, th, opts[10], ck):
+            # the contacts turned too far within the step for their linearisation at its
+            # start: rejected, retried with substeps (the shortfall falls as dt**2)
             diag[11] = 1.0
             diag[8] = max_age
             return -1
@@ -1430,7 +1459,14 @@ def _step(x, v, t, dt, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, energy, di
             for i in range(n):
                 for k in range(2):
                     v[i, k] += 2.0 * (x[i, k] - xs[i, k]) * inv_dt
-        if contact_velocities(x, v, wc, edge_len, th, dt, 2.0, True, True, ck) < 0:
+        cvs = contact_velocities(x, v, wc, edge_len, th, dt, 2.0, True, True, ck)
+        if cvs < -1:
+            # a non-finite velocity: the step is rejected (retried with substeps) before
+            # it reaches the state
+            diag[11] = 1.0
+            diag[8] = max_age
+            return -1
+        if cvs < 0:
             diag[12] += 1.0
     _damp(x, v, t + half, edge_len, mass, half$pargs)
     return it
@@ -1514,7 +1550,7 @@ def run(x, v, t0, dt, n_steps, edge_len, mass, winv, B, ws, mu, ab, piv, rhs, en
 #: The method's own imports in its generated module.
 _IMPORTS = """\
 from dynamics.bending import bending_force_add
-from dynamics.contact import contact_positions, contact_velocities
+from dynamics.contact import contact_positions, contact_shortfall, contact_velocities
 from dynamics.midpoint import (FINAL_C, KL, LOWRANK_MIN_RATE, MAX_CONTACT_ROUNDS, MAX_HALVINGS,
                                band_backward, band_forward, band_lu, band_lu_nopivot,
                                bending_hessian_add, contact_lowrank, contact_rows_save,
@@ -1676,7 +1712,8 @@ class Run:
         h_min = float(edge_len.min())
         opts = np.array([tol_x * h_min, tol_c, NEWTON_MAX_ITER, float(int(jacobian_age)),
                          CONTACT_PULL_TOL * h_min, 1.0 if stiffness else 0.0, REFRESH_RATE,
-                         REFRESH_MOVE, 1.0 if contact_updates else 0.0])
+                         REFRESH_MOVE, 1.0 if contact_updates else 0.0, CONTACT_MAX_DEPTH,
+                         CONTACT_MAX_SHORTFALL])
         self.ws = ws = np.zeros((13, n, 2))
         self.mu = np.zeros(n - 1)
         # workspace of the low-rank parts of the Newton matrix: the force stiffness (K

@@ -271,7 +271,7 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
         # self-contact: project onto the edge lengths and the non-penetration constraints
         # linearised at the old positions (a no-op while no pair is within reach)
         if contact_positions(x, xn, winv, edge_len, lam, _contact_thickness(t1$pargs),
-                             ck) < 0:
+                             np.inf, ck) < 0:
             diag[8] = 1.0
             return 2
     if it > diag[2]:
@@ -291,8 +291,13 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
     if HAS_CONTACT:
         # restitution 0 where the rod touches itself (an unsettled active set leaves the
         # velocities of its last round and is counted)
-        if contact_velocities(x, v, winv, edge_len, _contact_thickness(t1$pargs), dt, 1.0,
-                              False, False, ck) < 0:
+        cvs = contact_velocities(x, v, winv, edge_len, _contact_thickness(t1$pargs), dt, 1.0,
+                                 False, False, ck)
+        if cvs < -1:
+            # a non-finite velocity: a contact failure, not a silent NaN
+            diag[8] = 1.0
+            return 2
+        if cvs < 0:
             diag[9] += 1.0
     _damp(x, v, t1 - half, edge_len, mass, half$pargs)
     return 0
