@@ -173,6 +173,20 @@ def test_fig3d_fast_line(figs):
     assert got == {1.0: "open", 2.5: "encapsulated"}
 
 
+def test_fig3d_contact_fast_line(figs):
+    """The same line with rod self-contact (draft): the same outcomes, no run crosses
+    itself, and the title and the record name the thickness."""
+    out, _, seen = figs
+    d = json.loads((out / "fig3d-contact.json").read_text())
+    got = {r["we_sqrt"]: r["outcome"] for r in d["runs"]}
+    assert got == {1.0: "open", 2.5: "encapsulated"}
+    assert all(r["rod_crossing_time"] is None for r in d["runs"])
+    assert d["made_by"]["scene"]["rod"]["thickness"] == 0.0157
+    fig = seen["fig3d-contact.png"]
+    titles = [fig["suptitle"]] + [lab for ax in fig["axes"] for lab in ax["labels"]]
+    assert any("self-contact (thickness 0.0157)" in t for t in titles), titles
+
+
 def test_fig4_floppy_encapsulation(figs):
     out, _, _ = figs
     s = json.loads((out / "fig4_fig5.json").read_text())

@@ -18,6 +18,7 @@ FIGURES = {
     "overlay": "overlay",
     "energy-barrier": "energy_barrier",
     "fig3d": "fig3d",
+    "fig3d-contact": "fig3d_contact",
     "fig4-fig5": "fig4_fig5",
     "strip-bistability": "strip_bistability",
     "contact-comparison": "contact_comparison",

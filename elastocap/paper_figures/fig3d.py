@@ -14,6 +14,11 @@ level up to ``FIG3D_LEVELS``, and where it moves, located at that level and chec
 next. The frame-independent criterion's thresholds are computed on the same store and
 drawn too. Figs 4 and 5 (:mod:`elastocap.paper_figures.fig4_fig5`) run at
 the same resolution (:func:`fig3d_resolution`).
+
+The figure ``fig3d-contact`` (:mod:`elastocap.paper_figures.fig3d_contact`) is the same
+diagram with rod self-contact: the strip's thickness ``FIG3D_THICKNESS`` (the paper's
+h = 55 um over l_eg = 3.5 mm) and a final time ``FIG3D_CONTACT_T_MAX``, since strips folded
+onto themselves slide on each other longer before they rest.
 """
 
 from __future__ import annotations
@@ -42,82 +47,103 @@ FIG3D_TOL = 0.05
 #: 2.25x and 3.375x the edges of the sweep; as ``--converge 3 --every-level``), and where it
 #: moves, located at that level and checked at the next.
 FIG3D_LEVELS = 3
+#: The contact diagram's strip thickness in l_eg: h = 55 um, l_eg = 3.4996 mm.
+FIG3D_THICKNESS = 0.0157
+#: The contact diagram's final time: at t = 100, 61 of 239 runs at 133 edges were still
+#: moving (folded strips sliding on each other), at 150 the 12 of 176 listed in the guide.
+FIG3D_CONTACT_T_MAX = 150.0
 
 
-def fig3d_overrides(accuracy: str) -> list[str]:
-    """The ``--set`` overrides of the figure's scene (recorded in its title and JSON)."""
+def fig3d_overrides(accuracy: str, contact: bool = False) -> list[str]:
+    """The ``--set`` overrides of the figure's scene (recorded in its title and JSON);
+    ``contact``: with rod self-contact (the ``fig3d-contact`` figure)."""
+    if contact:
+        return [f"numerics.accuracy={accuracy}", f"effects.damping={FIG3D_DAMPING}",
+                f"numerics.t_max={FIG3D_CONTACT_T_MAX}", f"rod.thickness={FIG3D_THICKNESS}"]
     return [f"numerics.accuracy={accuracy}", f"effects.damping={FIG3D_DAMPING}",
             f"numerics.t_max={FIG3D_T_MAX}"]
 
 
-def fig3d_scene(accuracy: str):
-    return load_scene("fig3-strip", fig3d_overrides(accuracy))
+def fig3d_scene(accuracy: str, contact: bool = False):
+    return load_scene("fig3-strip", fig3d_overrides(accuracy, contact))
 
 
-def fig3d_resolution(accuracy: str, fast: bool = False):
+def fig3d_resolution(accuracy: str, fast: bool = False, contact: bool = False):
     """The :class:`~elastocap.sweep.Resolution` (level 0) every run of the figure uses."""
-    scene = fig3d_scene(accuracy)
+    scene = fig3d_scene(accuracy, contact)
     xs, we = ([3.0], [1.0, 2.5]) if fast else (FIG3D_X, FIG3D_WE)
     return sweep_resolutions(scene, grid_points(scene, xs, we_sqrts=we)[0])[0]
 
 
-def fig3d_sweeps(store, accuracy: str, fast: bool = False, **executor):
+def fig3d_sweeps(store, accuracy: str, fast: bool = False, contact: bool = False,
+                 **executor):
     """The figure's two sweeps into ``store``: the paper's criterion, then the
     frame-independent one on the same store (its runs are shared; only its own bisection
     and verification runs are new). ``executor``: ``workers=`` or ``scheduler=``, as
     :func:`~elastocap.sweep.run_sweep` takes them. Returns both sweep results."""
-    scene = fig3d_scene(accuracy)
+    scene = fig3d_scene(accuracy, contact)
     if fast:
         xs, we, refine, levels = [3.0], [1.0, 2.5], None, 0
     else:
         xs, we, refine, levels = FIG3D_X, FIG3D_WE, FIG3D_TOL, FIG3D_LEVELS
     common = dict(we_sqrts=we, store=store, refine_tol=refine, verify_levels=levels,
-                  verify_every_level=bool(levels), overrides=fig3d_overrides(accuracy),
+                  verify_every_level=bool(levels),
+                  overrides=fig3d_overrides(accuracy, contact),
                   **executor)
     res = run_sweep(scene, xs, **common)
     comp = run_sweep(scene, xs, criterion="companion_outcome", **common)
     return res, comp
 
 
+def _name(contact: bool) -> str:
+    return "fig3d-contact" if contact else "fig3d"
+
+
 def main(out_dir, fast: bool = False, workers: int | None = None,
-         accuracy: str | None = None) -> list[Path]:
+         accuracy: str | None = None, contact: bool = False) -> list[Path]:
     """Sweep, refine, verify and plot; writes ``fig3d.png``, ``fig3d.json`` and
-    ``fig3d-ACCURACY.sqlite`` (the store). ``fast``: one line, two runs, draft, no
-    verification (a smoke test)."""
+    ``fig3d-ACCURACY.sqlite`` (the store), or with ``contact`` ``fig3d-contact.png``,
+    ``fig3d-contact.json`` and ``fig3d-contact-ACCURACY.sqlite``. ``fast``: one line, two
+    runs, draft, no verification (a smoke test)."""
     out = Path(out_dir)
     accuracy = accuracy or ("draft" if fast else "default")
-    scene = fig3d_scene(accuracy)
-    res, comp = fig3d_sweeps(out / f"fig3d-{accuracy}.sqlite", accuracy, fast, workers=workers)
+    scene = fig3d_scene(accuracy, contact)
+    name = _name(contact)
+    res, comp = fig3d_sweeps(out / f"{name}-{accuracy}.sqlite", accuracy, fast, contact,
+                             workers=workers)
     body = res.to_dict()
     cd = comp.to_dict()
     body["companion"] = {"criterion": "companion_outcome", "boundary": cd["boundary"],
                          "counts": cd["counts"], "wall_time_s": comp.wall_time_s}
-    png = _draw(out, body)
-    js = out / "fig3d.json"
+    png = _draw(out, body, contact)
+    js = out / f"{name}.json"
     write_json(js, record(body, scene, fast=fast), indent=1)
     return [png, js]
 
 
-def _draw(out: Path, body: dict) -> Path:
-    """``fig3d.png`` from the figure's JSON body (the sweep's report with its companion)."""
+def _draw(out: Path, body: dict, contact: bool = False) -> Path:
+    """The figure's PNG from its JSON body (the sweep's report with its companion)."""
     comp = {**{k: v for k, v in body.items() if k not in ("runs", "companion")},
             **body["companion"]}
-    png = out / "fig3d.png"
+    png = out / f"{_name(contact)}.png"
+    with_contact = (f", rod self-contact (thickness {FIG3D_THICKNESS})" if contact else "")
     with atomic_path(png) as tmp:
         plot_phase_diagram(body, tmp, companion=comp,
-                           title=f"Fig 3d (model): fig3-strip, damping {FIG3D_DAMPING}; points "
-                           "and threshold: the paper's lab-frame criterion")
+                           title=f"Fig 3d (model): fig3-strip, damping {FIG3D_DAMPING}"
+                           f"{with_contact}; points and threshold: the paper's lab-frame "
+                           "criterion")
     return png
 
 
-def redraw(out_dir) -> list[Path]:
-    """Redraw ``fig3d.png`` from ``out_dir``'s ``fig3d.json`` without running an impact
-    (``python3 -m elastocap.paper_figures.fig3d DIR --redraw``)."""
+def redraw(out_dir, contact: bool = False) -> list[Path]:
+    """Redraw the figure's PNG from ``out_dir``'s JSON without running an impact
+    (``python3 -m elastocap.paper_figures.fig3d DIR --redraw [--contact]``)."""
     out = Path(out_dir)
-    js = out / "fig3d.json"
+    name = _name(contact)
+    js = out / f"{name}.json"
     if not js.is_file():
-        raise FileNotFoundError(f"fig3d: no {js}; make it with elastocap figures --only fig3d")
-    return [_draw(out, json.loads(js.read_text()))]
+        raise FileNotFoundError(f"{name}: no {js}; make it with elastocap figures --only {name}")
+    return [_draw(out, json.loads(js.read_text()), contact)]
 
 
 if __name__ == "__main__":
@@ -128,6 +154,8 @@ if __name__ == "__main__":
     ap.add_argument("--fast", action="store_true", help="one line, two runs (a smoke test)")
     ap.add_argument("--redraw", action="store_true",
                     help="redraw DIR/fig3d.png from DIR/fig3d.json without running impacts")
+    ap.add_argument("--contact", action="store_true",
+                    help="the diagram with rod self-contact (fig3d-contact)")
     a = ap.parse_args()
-    for p in (redraw(a.out) if a.redraw else main(a.out, a.fast)):
+    for p in (redraw(a.out, a.contact) if a.redraw else main(a.out, a.fast, contact=a.contact)):
         print(p)
