@@ -1,7 +1,7 @@
 """Fig 3d with rod self-contact: the strip's phase diagram when it cannot pass through
 itself (:mod:`elastocap.paper_figures.fig3d` with ``contact=True``: the thickness
-``FIG3D_THICKNESS`` and the final time ``FIG3D_CONTACT_T_MAX``; same grid, refinement and
-verification levels as Fig 3d)."""
+``FIG3D_THICKNESS`` and the final time ``FIG3D_CONTACT_T_MAX``; the grid and refinement of
+Fig 3d, every threshold checked at ``FIG3D_CONTACT_LEVELS`` finer levels)."""
 
 from __future__ import annotations
 
