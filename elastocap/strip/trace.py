@@ -189,7 +189,10 @@ _SIMULTANEOUS = 1e-8
 # points they carry noise of ~1e-11 (measured at x = 3, n = 100, a pair's foot at the end
 # of its segment: signs alternating at values 1e-13 .. 7e-12 near the root), where Brent's
 # method at the default 1e-12 ran out of its 60 iterations. 1e-10 is still ~1e-8 of the
-# discretization error of any located Delta.
+# discretization error of any located Delta. Only segments that hold pairs use it: the
+# ground's simultaneous events (_SIMULTANEOUS) need the default (at x = 3, n = 286 on the
+# open branch, two ground events at one Delta located to 1e-10 were not merged, and the
+# restart between them left a reaction negative).
 _SELF_LOCATE_TOL = 1e-10
 # A node that comes within this fraction of d of the thickness and leaves again grazes:
 # the held contacts carry the tip at exactly d over the flat base, so as the tip passes
@@ -198,6 +201,12 @@ _SELF_LOCATE_TOL = 1e-10
 # "touch-down" of that node 3.5e-9 in Delta before the tip's foot reached it). 1e-8 d is
 # above that and far below any physical gap.
 _GRAZE = 1e-8
+# A segment with self-contact whose event values start below this (dimensionless: forces
+# and gaps over the node weight, feet in edges) is refused: a violated constraint at the
+# start keeps the minimum negative, and no event could fire on it (measured at x = 3,
+# n = 429: a pair force at -0.54 q h all along a segment after two simultaneous switches).
+# Round-off at a restart is ~1e-10.
+_START_VIOLATION = 1e-6
 # A contact point within this (relative, in Delta) of a node is on it: there the side of
 # the one-sided dF/dDelta is the way the segment goes (Brent locates a kink to ~1e-12).
 _ON_KINK = 1e-11
@@ -653,7 +662,7 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pa
     p0 = float(strip.delta)
     g, values = _event_function(strip, tools, guard, v0, p0)
     st = settings.replace(p_min=lo, p_max=hi)
-    if strip.thickness > 0.0:
+    if tools["P"].shape[0]:
         st = st.replace(locate_tol=max(st.locate_tol, _SELF_LOCATE_TOL))
     if settings.direction == 0 and tangent is None:
         raise ValueError("settings.direction: got 0; expected +1 or -1 (a chain of segments "
@@ -665,8 +674,30 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pa
         # direction = -1, which turned a restarted downward segment back up)
         st = st.replace(direction=1)
     events = {"contact": g, **_kink_events(strip, v0, p0, sign)}
+    if strip.thickness > 0.0:
+        # a constraint already violated at the start would keep the event function
+        # negative all along, and no later event could fire
+        vals = values(v0, p0)
+        if float(np.min(vals)) < -_START_VIOLATION:
+            k = int(np.argmin(vals))
+            return prob, tools, _empty(
+                f"the segment at Delta = {p0:.12g} starts with event value {k} at "
+                f"{vals[k]:.3g} (a constraint violated): its events could not fire; try a "
+                "smaller ds0"), values
     br = continue_branch(prob, v0, p0, st, events=events, stop_on=tuple(events),
                          tangent=tangent)
+    if strip.thickness > 0.0 and len(br.p):
+        # the same at the corrected first point (a restart at two nearly simultaneous
+        # self-contact events can start a hair inside a tube: measured at x = 3, n = 429,
+        # a base node 2e-9 inside the tail's first free segment where the tail leaves
+        # the base, which masked every later event of that segment)
+        vals = values(br.u[0], br.p[0])
+        if float(np.min(vals)) < -_START_VIOLATION:
+            k = int(np.argmin(vals))
+            return prob, tools, _empty(
+                f"the segment at Delta = {br.p[0]:.12g} starts with event value {k} at "
+                f"{vals[k]:.3g} (a constraint violated at two nearly simultaneous contact "
+                "events): its events could not fire"), values
     return prob, tools, br, values
 
 
@@ -1045,8 +1076,11 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
                            "smaller ds0")
                 break
             cur = strip.with_(delta=seg.event.delta)
-            d_in = seg.delta[-1] - seg.delta[-2] if seg.delta.size > 1 else \
-                (tangent[-1] if tangent is not None else float(settings.direction))
+            # the way Delta went into the event: the last step that moved it (a segment
+            # between two events at the same Delta has none)
+            d_in = next((float(dd[dd != 0.0][-1]) for dd in
+                         (np.diff(x.delta) for x in reversed(segments)) if np.any(dd != 0.0)),
+                        float(settings.direction))
             active, u0, r0, pairs, mu0, tangent, guard = _restart_pair(cur, active,
                                                                         seg.event, d_in)
             u0 = u0.copy()

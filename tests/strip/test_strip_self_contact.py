@@ -17,6 +17,7 @@ import pytest
 
 from continuation import ContinuationSettings
 from dynamics.contact import segment_distances
+from elastocap.geometry import count_crossings
 from elastocap.scene import SceneError, load_scene
 from elastocap.strip.model import (
     DiscreteStrip,
@@ -164,6 +165,23 @@ def test_hairpin_branch_ends_at_the_tip_lifting_off(hairpin100):
         direction=-1), restart=True, max_segments=200)
     fold = b.turning_points[0]
     assert (fold["kind"], fold["node"], fold["index"]) == ("pair_lift_off", 100, (0, 1))
+    # every traced point is a contact equilibrium: held gaps 0 and forces >= 0, no other
+    # node inside a tube (to the graze allowance 1e-8 d), no node below the ground, the
+    # strip not crossing itself. Round-off: the corrector's newton_tol / c ~ 3e-12 on a
+    # held gap; an event's point is located to 1e-10 in arclength with a thickness, so the
+    # switching value there is ~1e-10 (measured: the tip's ground touch-down on the open
+    # side, z = -3e-11)
+    for sg in b.segments:
+        for u, r, mu, p in zip(sg.u, sg.reactions, sg.pair_forces, sg.delta, strict=True):
+            s = st.with_(delta=float(p))
+            X = s.positions(u)
+            assert np.min(X[:, 1]) > -1e-9 and np.min(r) > -1e-9
+            if len(sg.pairs):
+                assert np.max(np.abs(pair_gaps(s, u, sg.pairs)[0])) < 1e-11
+                assert np.min(mu) > -1e-9, (p, mu)
+            _j, dist, _d, _w = closest_segments(s, u, X)
+            assert np.min(dist) > D * (1 - 1e-8) - 1e-9, (p, np.min(dist))
+            assert count_crossings(X, X, True, 0, s.size) == 0
     ev = next(e for e in b.events if e.kind == "pair_lift_off")
     assert ev.delta == fold["delta"] and abs(ev.value) < 1e-9  # the force at the event
     # every earlier event of the tip is a slide onto the next base segment, on the
@@ -225,3 +243,31 @@ def test_damped_run_with_thickness_rests_on_the_hairpin(hairpin100):
     assert abs(f[j, 1] + f[j + 1, 1] + mu) < 2e-4 * mu
     others = np.delete(np.arange(st.size), [i, j, j + 1])
     assert np.max(np.abs(f[others])) == 0.0
+
+
+@pytest.mark.slow
+def test_hairpin_branch_end_converges_in_the_edges():
+    """The end of the stable hairpin branch at x = 3 (the tip's lift-off) at n = 143, 286,
+    429 (the drop's centre on a node or mid-edge): observed order and Richardson error
+    (measured 0.15697, 0.13094, 0.12556: order 1.8, limit 0.1206, error 0.005; ~4 min)."""
+    from scipy.optimize import brentq
+
+    ns = (143, 286, 429)
+    ends = []
+    for n in ns:
+        st = discrete_strip_for(_hairpin_scene(), n)
+        b = trace_discrete_branch(st, wrapped_state(st), (0.02, 1.4),
+                                  ContinuationSettings(**DEFAULTS).replace(direction=-1),
+                                  restart=True, max_segments=1000)
+        fold = b.turning_points[0]
+        assert (fold["kind"], fold["node"], fold["index"]) == ("pair_lift_off", n, (0, 1))
+        ends.append(fold["delta"])
+    f1, f2, f3 = ends
+    n1, n2, n3 = ns
+    ratio = (f1 - f2) / (f2 - f3)
+    p = brentq(lambda q: (n1**-q - n2**-q) / (n2**-q - n3**-q) - ratio, 0.1, 8.0)
+    limit = f3 - (f2 - f3) / (n2**-p - n3**-p) * n3**-p
+    assert f1 > f2 > f3, ends  # monotone
+    assert 1.4 < p < 2.3, f"observed order {p:.2f}, ends {ends}"
+    assert abs(f3 - limit) < 0.01, (limit, ends)
+    assert 0.11 < limit < 0.13, limit
