@@ -25,6 +25,19 @@ resolution (``dynamics.bending``, ``dynamics.effects.Gravity`` with lumped masse
   Hessian is assembled here from the same cap kernels (:func:`capillary_hessian_nodes`);
 * optionally a vertical point force F at the free end: E_F = -F z_n (closed-form tests).
 
+Self-contact (``thickness`` d > 0; the dynamics' :mod:`dynamics.contact`): node i and
+segment j (nodes j, j + 1) far enough apart along the strip (arc-length gap >= pi d / 2,
+``dynamics.contact.exclusion_length``) stay at least d apart. A contact is a *pair*
+(i, j, sigma): node i on the side sigma = +-1 of segment j, with the gap
+
+    g = sigma n_j . (X_i - X_j) - d,     n_j = (-sin theta_j, cos theta_j),
+
+the signed distance to the segment's line (:func:`pair_gaps`), which is the distance to
+the segment while the closest point lies inside it (0 <= w <= 1, w the position along the
+segment). In the angles it reads sigma h sum_m sin(theta_m - theta_j) - d over the edges m
+between j and i, so its gradient and Hessian are closed forms (:func:`pair_jacobian`,
+:func:`pair_hessian`). Off (d = 0) no pair exists and nothing is evaluated.
+
 Ground: z_k >= 0 at every node k = 0..n (the constraint values :meth:`DiscreteStrip.heights`
 and their gradients :meth:`DiscreteStrip.constraint_jacobian`); the contact set is an
 unknown, so one model covers every contact topology (the open state, the lifted and the
@@ -45,6 +58,7 @@ from dataclasses import dataclass, fields
 import numba
 import numpy as np
 
+from dynamics.contact import exclusion_length
 from elastocap.drop import (
     cap_geometry,
     cap_tau_derivatives,
@@ -54,13 +68,20 @@ from elastocap.drop import (
 from elastocap.geometry import arc_points, count_crossings
 
 __all__ = [
+    "REDUNDANT_SIN",
     "DiscreteStrip",
     "capillary_hessian_nodes",
+    "closest_segments",
     "discrete_strip_for",
     "flat_energy",
     "flat_state",
     "is_encapsulated",
+    "pair_gaps",
+    "pair_hessian",
+    "pair_jacobian",
+    "pair_switch",
     "point_measures",
+    "redundant_pair",
     "shoelace_derivatives",
     "strip_and_interface",
 ]
@@ -252,6 +273,9 @@ class DiscreteStrip:
         Weight per unit length mu g (force / length).
     F : float
         Vertical point force on the last node (force), 0 in the scene.
+    thickness : float
+        The strip's thickness d (length, scene key ``rod.thickness``): node-segment
+        self-contact (module docstring); 0 turns it off.
     """
 
     n: int
@@ -263,12 +287,14 @@ class DiscreteStrip:
     B: float = 1.0
     q: float = 1.0
     F: float = 0.0
+    thickness: float = 0.0
 
     def __post_init__(self):
         if int(self.n) != self.n or self.n < 4:
             raise ValueError(f"n: got {self.n!r}; expected an integer number of edges >= 4")
         for name, lo, strict in (("L", 0.0, True), ("B", 0.0, True), ("q", 0.0, False),
-                                 ("gamma", 0.0, False), ("area", 0.0, self.gamma > 0.0)):
+                                 ("gamma", 0.0, False), ("area", 0.0, self.gamma > 0.0),
+                                 ("thickness", 0.0, False)):
             v = getattr(self, name)
             if not (math.isfinite(v) and (v > lo if strict else v >= lo)):
                 raise ValueError(
@@ -466,6 +492,7 @@ def discrete_strip_for(scene, n=None) -> DiscreteStrip:
         int(n), scene.rod.length, scene.distance_from_end, d.wetted_length, d.area,
         d.line_tension, scene.rod.bending_modulus,
         scene.rod.mass_per_length * scene.effects.gravity,
+        thickness=float(scene.rod.thickness or 0.0),
     )
 
 
@@ -536,3 +563,239 @@ def point_measures(strip: DiscreteStrip, u, flat: float | None = None) -> dict:
         "interface_crossings": if_x,
         "admissible": float(rod_x == 0 and if_x == 0),
     }
+
+
+# --------------------------------------------------------------------------- self-contact
+def _pair_edges(i, j):
+    """The edges m between segment j and node i, and the sign s with X_i - X_j =
+    s h sum_m (cos, sin) theta_m: m = j .. i - 1 (s = +1) for i > j + 1, m = i .. j - 1
+    (s = -1) for i < j."""
+    return (np.arange(j, i), 1.0) if i > j else (np.arange(i, j), -1.0)
+
+
+def _as_pairs(pairs) -> np.ndarray:
+    P = np.asarray(pairs, dtype=np.int64).reshape(-1, 3)
+    return P
+
+
+def pair_gaps(strip: DiscreteStrip, u, pairs):
+    """Gaps of the self-contact pairs and where each one's form holds.
+
+    Parameters
+    ----------
+    strip : DiscreteStrip
+    u : ndarray, shape (n + 1,)
+    pairs : array_like of int, shape (m, 3)
+        (i, j, sigma): with sigma = +-1 a *line* pair, node i on the side sigma of segment j
+        (nodes j, j + 1); with sigma = 0 a *point* pair, node i against node j (the closest
+        point of the strip to node i is the vertex j).
+
+    Returns
+    -------
+    gap : ndarray, shape (m,)
+        Line pair: sigma n_j . (X_i - X_j) - d, the distance to the segment's line minus the
+        thickness on the pair's side (negative inside the tube or across); point pair:
+        |X_i - X_j| - d (length).
+    region : ndarray, shape (m,)
+        >= 0 while the pair's form is the distance to the strip: line pair, min(w, 1 - w)
+        with w the foot's position along the segment (0 at node j, 1 at node j + 1); point
+        pair, min(-(X_i - X_j) . t_j, (X_i - X_j) . t_{j-1}) / h over the edges at node j
+        (t the unit tangents; the foot on neither edge).
+    """
+    P = _as_pairs(pairs)
+    X = strip.positions(u)
+    th = np.asarray(u[1:], dtype=float)
+    gap = np.empty(P.shape[0])
+    region = np.empty(P.shape[0])
+    h = strip.h
+    for a, (i, j, sg) in enumerate(P):
+        D = X[i] - X[j]
+        if sg != 0:
+            gap[a] = sg * (-math.sin(th[j]) * D[0] + math.cos(th[j]) * D[1]) - strip.thickness
+            w = (math.cos(th[j]) * D[0] + math.sin(th[j]) * D[1]) / h
+            region[a] = min(w, 1.0 - w)
+        else:
+            gap[a] = math.hypot(D[0], D[1]) - strip.thickness
+            r = math.inf
+            if j < strip.n:
+                r = -(math.cos(th[j]) * D[0] + math.sin(th[j]) * D[1]) / h
+            if j >= 1:
+                r = min(r, (math.cos(th[j - 1]) * D[0] + math.sin(th[j - 1]) * D[1]) / h)
+            region[a] = r
+    return gap, region
+
+
+def _point_parts(strip, th, i, k, X):
+    """X_i - X_k, the edges m between them, dD/dtheta_m (2, |M|) and the sign s."""
+    m, s = _pair_edges(int(i), int(k))
+    D = X[i] - X[k]
+    dD = s * strip.h * np.vstack([-np.sin(th[m]), np.cos(th[m])])
+    return D, m, dD, s
+
+
+def pair_jacobian(strip: DiscreteStrip, u, pairs) -> np.ndarray:
+    """d gap / du of the pairs, shape (m, n + 1) (column 0, z_0, is zero: a gap does not
+    depend on a translation).
+
+    Line pair: with d = s h sum_m sin(theta_m - theta_j) (edges m of :func:`_pair_edges`),
+    d d / d theta_m = s h cos(theta_m - theta_j), d d / d theta_j = -s h sum_m cos(theta_m
+    - theta_j); times sigma. Point pair: d|D| / d theta_m = D . dD/dtheta_m / |D|.
+    """
+    P = _as_pairs(pairs)
+    th = np.asarray(u[1:], dtype=float)
+    out = np.zeros((P.shape[0], strip.size))
+    X = None
+    for a, (i, j, sg) in enumerate(P):
+        if sg != 0:
+            m, s = _pair_edges(int(i), int(j))
+            c = sg * s * strip.h * np.cos(th[m] - th[j])
+            out[a, 1 + m] += c
+            out[a, 1 + j] -= float(np.sum(c))
+        else:
+            X = strip.positions(u) if X is None else X
+            D, m, dD, _s = _point_parts(strip, th, i, j, X)
+            out[a, 1 + m] = (D @ dD) / math.hypot(D[0], D[1])
+    return out
+
+
+def pair_hessian(strip: DiscreteStrip, u, pairs, mu) -> np.ndarray:
+    """sum_p mu_p d^2 gap_p / du^2, shape (n + 1, n + 1) (mu: force, shape (m,)).
+
+    Line pair, with c_m = sigma s h sin(theta_m - theta_j): d^2 / d theta_m^2 = -c_m,
+    d^2 / d theta_m d theta_j = +c_m, d^2 / d theta_j^2 = -sum_m c_m (m over the edges of
+    :func:`_pair_edges`; the term m = j vanishes). Point pair, rho = |D|:
+    d^2 rho = (dD^T dD + D . d^2 D) / rho - grad rho grad rho^T / rho, with d^2 D /
+    d theta_m^2 = -s h (cos, sin) theta_m (diagonal)."""
+    P = _as_pairs(pairs)
+    th = np.asarray(u[1:], dtype=float)
+    H = np.zeros((strip.size, strip.size))
+    X = None
+    for (i, j, sg), f in zip(P, np.asarray(mu, dtype=float), strict=True):
+        if f == 0.0:
+            continue
+        if sg != 0:
+            m, s = _pair_edges(int(i), int(j))
+            c = f * sg * s * strip.h * np.sin(th[m] - th[j])
+            H[1 + m, 1 + m] -= c
+            H[1 + m, 1 + j] += c
+            H[1 + j, 1 + m] += c
+            H[1 + j, 1 + j] -= float(np.sum(c))
+        else:
+            X = strip.positions(u) if X is None else X
+            D, m, dD, s = _point_parts(strip, th, i, j, X)
+            rho = math.hypot(D[0], D[1])
+            gr = (D @ dD) / rho
+            d2 = -s * strip.h * (D[0] * np.cos(th[m]) + D[1] * np.sin(th[m]))
+            blk = (dD.T @ dD - np.outer(gr, gr)) / rho
+            blk[np.diag_indices_from(blk)] += d2 / rho
+            H[np.ix_(1 + m, 1 + m)] += f * blk
+    return H
+
+
+#: Two layers lying on each other at an angle below this (|sin|) make the pairs of one
+#: layer's nodes on the other's segments and those the other way redundant (exactly so
+#: when parallel: a singular KKT matrix); one direction is held (:func:`redundant_pair`).
+#: A node of the other direction can then sit inside the tube by at most ~ d sin^2 / 2
+#: (1.25e-3 d here, 2e-5 at the paper's d = 0.0157).
+REDUNDANT_SIN = 0.05
+
+
+def redundant_pair(u, i, j, held) -> bool:
+    """Whether the line pair (node i, segment j) is redundant with a held one: a node of
+    segment j (j or j + 1) held by a line pair on a segment ending at node i (i - 1 or i)
+    that is parallel to segment j within :data:`REDUNDANT_SIN`.
+
+    ``held``: mapping node -> (segment, sigma) of the held pairs."""
+    th = u[1:]
+    for k in (j, j + 1):
+        m, sg = held.get(int(k), (-9, 0))[:2]
+        if sg != 0 and m in (i - 1, i) and abs(math.sin(th[m] - th[j])) < REDUNDANT_SIN:
+            return True
+    return False
+
+
+def pair_switch(strip: DiscreteStrip, u, pair):
+    """The pair that continues ``pair`` (i, j, sigma) once its form stops holding (its
+    ``region`` of :func:`pair_gaps` reaches 0), with the same gap there.
+
+    A line pair whose foot reaches node k (an end of its segment) moves to the next
+    segment when that one continues the line (|theta difference| < 1e-12: the stretch lying
+    flat on the ground), else becomes the point pair (i, k, 0). A point pair becomes the
+    line pair of the edge at k that the node's foot enters, on the node's side of it.
+    Returns None where no such pair exists (the strip's end).
+    """
+    i, j, sg = (int(a) for a in pair)
+    th = np.asarray(u[1:], dtype=float)
+    X = strip.positions(u)
+    D = X[i] - X[j]
+    if sg != 0:
+        w = (math.cos(th[j]) * D[0] + math.sin(th[j]) * D[1]) / strip.h
+        k, nxt = (j, j - 1) if w < 0.5 else (j + 1, j + 1)
+        if 0 <= nxt < strip.n and abs(th[nxt] - th[j]) < 1e-12 and nxt != i and nxt + 1 != i:
+            return (i, nxt, sg)
+        return (i, k, 0) if k != i else None
+    # point pair: the edge the foot enters (the one D has a positive projection on)
+    fwd = j < strip.n and (math.cos(th[j]) * D[0] + math.sin(th[j]) * D[1]) > 0.0
+    e = j if fwd else j - 1
+    if e < 0 or e >= strip.n or e == i or e + 1 == i:
+        return None
+    E = X[i] - X[e]
+    side = -math.sin(th[e]) * E[0] + math.cos(th[e]) * E[1]
+    return (i, e, 1 if side >= 0.0 else -1)
+
+
+@numba.njit(cache=True)
+def _closest_segments(X, s_nodes, lex, out_j, out_dist, out_d, out_w):
+    n1 = X.shape[0]
+    for i in range(n1):
+        best = np.inf
+        for j in range(n1 - 1):
+            if j > i:
+                if s_nodes[j] - s_nodes[i] < lex:
+                    continue
+            elif j + 1 < i:
+                if s_nodes[i] - s_nodes[j + 1] < lex:
+                    continue
+            else:
+                continue
+            ax, az = X[j, 0], X[j, 1]
+            ex, ez = X[j + 1, 0] - ax, X[j + 1, 1] - az
+            px, pz = X[i, 0] - ax, X[i, 1] - az
+            l2 = ex * ex + ez * ez
+            w = (px * ex + pz * ez) / l2
+            wc = min(max(w, 0.0), 1.0)
+            qx, qz = px - wc * ex, pz - wc * ez
+            dist = math.sqrt(qx * qx + qz * qz)
+            if dist < best:
+                best = dist
+                out_j[i] = j
+                out_dist[i] = dist
+                out_d[i] = (ex * pz - ez * px) / math.sqrt(l2)  # signed, to the left
+                out_w[i] = w
+    return out_j
+
+
+def closest_segments(strip: DiscreteStrip, u, X=None):
+    """For every node, the nearest segment it is tested against (arc-length gap >= pi d / 2,
+    as ``dynamics.contact``), by brute force, O(n^2).
+
+    Returns
+    -------
+    j : ndarray of int, shape (n + 1,)
+        The segment (-1 where none is tested).
+    dist : ndarray, shape (n + 1,)
+        Distance to it (length; inf where none).
+    d : ndarray, shape (n + 1,)
+        Signed distance to its line, positive on the left of the segment (n_j side).
+    w : ndarray, shape (n + 1,)
+        Position of the foot along it (unclamped).
+    """
+    if X is None:
+        X = strip.positions(u)
+    n1 = X.shape[0]
+    j = np.full(n1, -1, dtype=np.int64)
+    dist = np.full(n1, np.inf)
+    d = np.zeros(n1)
+    w = np.zeros(n1)
+    _closest_segments(X, strip.s_nodes, exclusion_length(strip.thickness), j, dist, d, w)
+    return j, dist, d, w

@@ -26,15 +26,26 @@ convergence studies follow one state, saddles included).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from continuation import factorize
-from elastocap.strip.model import DiscreteStrip, flat_state
+from elastocap.strip.model import (
+    DiscreteStrip,
+    closest_segments,
+    flat_state,
+    pair_gaps,
+    pair_hessian,
+    pair_jacobian,
+    pair_switch,
+    redundant_pair,
+)
 
 __all__ = [
+    "PAIR_SLACK",
     "Equilibrium",
+    "contact_pairs_of",
     "R_REL",
     "descend_from_saddle",
     "lagrangian_hessian",
@@ -72,22 +83,41 @@ _SHORT_ITER = 200
 # Descent (:func:`minimize_energy`): stop at |grad| below this (energy units, as scipy's
 # trust-exact gtol); the active-set polish then converges quadratically.
 _DESCENT_GTOL = 1e-8
+# Steps of the thickness continuation that makes a state without contact one with contact
+# (after d / 64: d / 16, 2 d / 16, ..., d; measured at x = 3, Delta = 1.2, n = 286: 4
+# Newton iterations each).
+_THICKNESS_STEPS = 16
 # Push off the saddle along its unstable mode before each descent (radians, max norm of
 # the displacement): large enough for the descent to leave the saddle's neighbourhood at
 # once, small next to the distance to either minimum (~1-3 rad in the tail angles).
 _PUSH = 0.02
 
 
-def lagrangian_hessian(strip: DiscreteStrip, u, r) -> np.ndarray:
-    """Hessian of E - sum_k r_k z_k in u, shape (n + 1, n + 1).
+def lagrangian_hessian(strip: DiscreteStrip, u, r, pairs=None, mu=None) -> np.ndarray:
+    """Hessian of E - sum_k r_k z_k - sum_p mu_p gap_p in u, shape (n + 1, n + 1).
 
-    - sum_k r_k d^2 z_k / du^2 = diag_j(h sin theta_j sum_{k > j} r_k).
+    - sum_k r_k d^2 z_k / du^2 = diag_j(h sin theta_j sum_{k > j} r_k); the self-contact
+    pairs (``pairs`` (m, 3), forces ``mu`` (m,)) add -:func:`~elastocap.strip.model.
+    pair_hessian`.
     """
     N = strip.size
     H = strip.hessian(u)
     rs = np.cumsum(np.asarray(r)[::-1])[::-1]
     H[np.arange(1, N), np.arange(1, N)] += strip.h * np.sin(u[1:]) * rs[1:]
+    if pairs is not None and len(pairs):
+        H -= pair_hessian(strip, u, pairs, mu)
     return H
+
+
+def _with_pairs(strip, u, Z, pairs):
+    """The basis Z (N, k) of the ground's tangent space restricted to the null space of
+    the pairs' gradients as well (orthonormal, (N, k'))."""
+    if pairs is None or not len(pairs):
+        return Z
+    C = pair_jacobian(strip, u, pairs) @ Z
+    _q, sv, vt = np.linalg.svd(C, full_matrices=True)
+    rank = int(np.sum(sv > 1e-12 * max(float(sv[0]), 1e-300))) if sv.size else 0
+    return Z @ vt[rank:].T
 
 
 def _strong_weak(strip, eq):
@@ -152,6 +182,11 @@ class Equilibrium:
     index : int
         Negative eigenvalues of the Lagrangian Hessian on the tangent space of the
         strongly active contacts; -1 when not computed.
+    pairs : ndarray of int, shape (m, 3)
+        Self-contact pairs held (i, j, sigma): node i on the side sigma of segment j
+        (:func:`~elastocap.strip.model.pair_gaps`); empty without a thickness.
+    pair_forces : ndarray, shape (m,)
+        Their contact forces (force), >= 0.
     degenerate : int
         Contacts with z = 0 and r ~ 0 (weakly active).
     status : str
@@ -170,6 +205,8 @@ class Equilibrium:
     message: str
     index: int = -1
     degenerate: int = 0
+    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.int64))
+    pair_forces: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def success(self) -> bool:
@@ -180,9 +217,64 @@ class Equilibrium:
         return int(np.count_nonzero(self.active))
 
 
+#: Penetration below which a node does not join a self-contact pair (relative to h): the
+#: round-off of a distance between stacked layers (~1e-16 L) is far below, a Newton step's
+#: penetration far above.
+PAIR_SLACK = 1e-12
+
+
+def _update_pairs(strip, u_old, u, P, mu, cpd):
+    """The self-contact pairs after a Newton step (primal-dual active-set rule, as the
+    ground's): a held pair stays while mu - c gap > 0; one whose form stops holding (its
+    foot off its segment, :func:`~elastocap.strip.model.pair_switch`) becomes the pair that
+    continues it (same force); a node of no pair that is within d of its closest tested
+    segment joins: a line pair with that segment on the side of its line the node was on
+    before the step, or a point pair with the segment's end node where the closest point
+    is that end. One pair per node; a line pair redundant with a held one (two layers
+    lying on each other: node i on segment j while a node of segment j is held on a
+    segment ending at i, parallel, :func:`~elastocap.strip.model.redundant_pair`) is not
+    added."""
+    keep = {}
+    if P.shape[0]:
+        gap, region = pair_gaps(strip, u, P)
+        for row, f, gv, rv in zip(P, mu, gap, region, strict=True):
+            if f - cpd * gv <= 0.0:
+                continue
+            if rv < 0.0:
+                row = pair_switch(strip, u, row)
+                if row is None:
+                    continue
+            keep.setdefault(int(row[0]), (int(row[1]), int(row[2]), float(f)))
+    jc, dist, _d, w = closest_segments(strip, u)
+    # joins only when inside the tube by more than round-off: where two layers lie on each
+    # other (the tail on the base), the base's nodes sit at d from the tail's segments to
+    # round-off, and those pairs are redundant with the tail's (a singular KKT matrix)
+    close = np.flatnonzero(dist < strip.thickness - PAIR_SLACK * strip.h)
+    if close.size:
+        Xo = strip.positions(u_old)
+        for i in close[np.argsort(dist[close], kind="stable")]:
+            j = int(jc[i])
+            if int(i) in keep:
+                continue
+            if w[i] < 0.0 or w[i] > 1.0:
+                k = j if w[i] < 0.0 else j + 1
+                if k != i:
+                    keep[int(i)] = (k, 0, 0.0)
+                continue
+            if redundant_pair(u, i, j, keep):
+                continue
+            e = Xo[j + 1] - Xo[j]
+            side = e[0] * (Xo[i, 1] - Xo[j, 1]) - e[1] * (Xo[i, 0] - Xo[j, 0])
+            keep[int(i)] = (j, 1 if side >= 0.0 else -1, 0.0)
+    Pn = np.array([(i, j, sg) for i, (j, sg, _f) in sorted(keep.items())],
+                  dtype=np.int64).reshape(-1, 3)
+    mun = np.array([max(f, 0.0) for _i, (_j, _sg, f) in sorted(keep.items())])
+    return Pn, mun
+
+
 def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
                       max_iter=_MAX_ITER, compute_index=True, trace=None,
-                      max_turn=_MAX_TURN) -> Equilibrium:
+                      max_turn=_MAX_TURN, pairs=None) -> Equilibrium:
     """Primal-dual active-set Newton for the strip on the ground.
 
     Parameters
@@ -201,12 +293,19 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
         Receives (iteration, residual, contacts, step, alpha) per iteration.
     max_turn : float
         Newton steps turning an edge by more than this (radians) are scaled down.
+    pairs : array_like of int, shape (m, 3), optional
+        Initial self-contact pairs (i, j, sigma) (strip with a thickness only); default
+        none. The pair set is an unknown like the ground's: a pair whose force turns
+        negative leaves, a node inside the tube of its closest tested segment joins (on
+        the side it was on before the step), a pair whose foot leaves its segment moves to
+        the neighbouring one.
 
     Returns
     -------
     Equilibrium
         ``status`` "converged" only with a zero-residual KKT point with every reaction
-        >= 0 and every node on or above the ground (to ``tol``).
+        >= 0 and every node on or above the ground (to ``tol``); with a thickness, also
+        every pair force >= 0 and every tested node-segment distance >= d (to ``tol``).
     """
     u = np.array(u0, dtype=float)
     N = strip.size
@@ -221,6 +320,13 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
     zscale = cpd  # penetration (length) compared as the force it would take to cause it
     status, msg, it = "max_iter", "", 0
     res = math.inf
+    sc = strip.thickness > 0.0
+    P = np.zeros((0, 3), dtype=np.int64) if pairs is None else \
+        np.asarray(pairs, dtype=np.int64).reshape(-1, 3).copy()
+    if P.size and not sc:
+        raise ValueError(f"pairs: got {P.shape[0]} self-contact pairs; expected none for a "
+                         "strip without a thickness (strip.thickness = 0)")
+    mu = np.zeros(P.shape[0])
     for it in range(1, max_iter + 1):
         E, g, H = strip.derivatives(u)
         z = strip.heights(u)
@@ -233,19 +339,30 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
         GA = strip.constraint_jacobian(u, A)
         Ga = GA[:, fi]
         nf, na = fi.size, A.size
-        K = np.zeros((nf + na, nf + na))
+        npr = P.shape[0]
+        if npr:
+            W -= pair_hessian(strip, u, P, mu)
+            gp, _wp = pair_gaps(strip, u, P)
+            Gp = pair_jacobian(strip, u, P)[:, fi]
+        K = np.zeros((nf + na + npr, nf + na + npr))
         K[:nf, :nf] = W[np.ix_(fi, fi)]
-        K[:nf, nf:] = Ga.T
-        K[nf:, :nf] = Ga
+        K[:nf, nf:nf + na] = Ga.T
+        K[nf:nf + na, :nf] = Ga
+        if npr:
+            K[:nf, nf + na:] = Gp.T
+            K[nf + na:, :nf] = Gp
         # solve for the change of the multipliers, not the multipliers themselves: the
         # KKT matrix is ill-conditioned (B/h^3 against q h), and a correction keeps the
         # final residual at the accuracy of its evaluation (1e-12), not of the solve (1e-9)
         rhs = np.concatenate([-(g - strip.reaction_forces(u, np.where(act, r, 0.0)))[fi],
                               -z[A]])
+        if npr:
+            rhs[:nf] += (Gp.T @ mu)
+            rhs = np.concatenate([rhs, -gp])
         # the contact rows taken between consecutive contacts (the same solution): where
         # two neighbours are held the row has one nonzero, which factorize pivots on first
-        K[nf + 1:, :nf] -= Ga[:-1]
-        rhs[nf + 1:] += z[A[:-1]]
+        K[nf + 1:nf + na, :nf] -= Ga[:-1]
+        rhs[nf + 1:nf + na] += z[A[:-1]]
         fac = factorize(K)
         if fac is None:
             status, msg = "singular", "singular KKT matrix; try another initial contact set"
@@ -254,26 +371,42 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
         du = np.zeros(N)
         du[fi] = sol[:nf]
         r_new = np.zeros(N)
-        r_new[A] = r[A] - sol[nf:]
+        r_new[A] = r[A] - sol[nf:nf + na]
         # residual at the current point with the new multipliers: stop test
         stat = g - strip.reaction_forces(u, r_new)
+        if npr:
+            mu_new = mu - sol[nf + na:]
+            stat[fi] -= Gp.T @ mu_new
         res = max(float(np.max(np.abs(stat[fi]))), zscale * float(max(0.0, -np.min(z))),
                   zscale * float(np.max(np.abs(z[A]))) if na else 0.0)
+        if sc:
+            # every tested node at least d from its closest segment, the held pairs at d
+            _j, dist, _d, _w = closest_segments(strip, u)
+            res = max(res, zscale * float(max(0.0, strip.thickness - PAIR_SLACK * strip.h
+                                                  - np.min(dist))),
+                      zscale * float(np.max(np.abs(gp))) if npr else 0.0)
         # relative to the largest generalized force (q L on z_0, gamma on the wet edges):
         # the round-off floor of the residual is ~1e-11 of it
         fscale = max(1.0, float(np.max(np.abs(g))))
         res /= fscale
         ok_sign = (na == 0) or float(np.min(r_new[A])) >= -tol * fscale
+        if npr:
+            ok_sign = ok_sign and float(np.min(mu_new)) >= -tol * fscale
         step = float(np.max(np.abs(du[1:]))) if N > 1 else 0.0
         if res <= tol and ok_sign and step <= 1e3 * tol:
             r = r_new
+            if npr:
+                mu = mu_new
             status, msg = "converged", "KKT residual below tol with r >= 0"
             break
         alpha = min(1.0, max_turn / step) if step > 0.0 else 1.0
         if trace is not None:
             trace.append((it, res, na, step, alpha))
+        u_old = u
         u = u + alpha * du
         r = r_new
+        if sc:
+            P, mu = _update_pairs(strip, u_old, u, P, mu_new if npr else mu, cpd)
         z_new = strip.heights(u)
         new_act = ((r - cpd * z_new) > 0.0) & can
         key = new_act.tobytes()
@@ -297,6 +430,8 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
         u=u, energy=float(E), parts=strip.energy_parts(u), reactions=r, active=act,
         residual=float(res), iterations=it, status=status, message=msg,
     )
+    if sc:
+        eq.pairs, eq.pair_forces = P, mu
     if eq.success and compute_index:
         eq.index, eq.degenerate = stability(strip, eq)
     return eq
@@ -308,17 +443,22 @@ def stability(strip: DiscreteStrip, eq: Equilibrium) -> tuple[int, int]:
     The index is the number of negative eigenvalues of the Lagrangian Hessian restricted to
     the free unknowns tangent to the strongly active contacts (r_k > R_REL q h).
     """
-    H = lagrangian_hessian(strip, eq.u, eq.reactions)
+    H = lagrangian_hessian(strip, eq.u, eq.reactions, eq.pairs, eq.pair_forces)
     strong, weak = _strong_weak(strip, eq)
     Z = _tangent_basis(strip, eq.u, strong)
+    nweak = int(np.count_nonzero(weak))
+    if len(eq.pairs):
+        pstrong = eq.pair_forces > R_REL * strip.q * strip.h
+        Z = _with_pairs(strip, eq.u, Z, eq.pairs[pstrong])
+        nweak += int(np.count_nonzero(~pstrong))
     on = np.flatnonzero(np.any(Z != 0.0, axis=1))  # the unknowns the contacts leave free
     Hr = Z[on].T @ H[np.ix_(on, on)] @ Z[on]
     if Hr.shape[0] == 0:  # the contacts fix every unknown (the flat strip)
-        return 0, int(np.count_nonzero(weak))
+        return 0, nweak
     ev = np.linalg.eigvalsh(0.5 * (Hr + Hr.T))
     # eigenvalues at round-off level of the largest count as zero, not negative
     neg = int(np.sum(ev < -1e-10 * max(1.0, float(np.max(np.abs(ev))))))
-    return neg, int(np.count_nonzero(weak))
+    return neg, nweak
 
 
 def _penalty(strip, u, k):
@@ -378,6 +518,10 @@ def _trust_step(lam, V, g, radius):
 def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equilibrium:
     """A local minimum of the energy on z >= 0, reached by descent from ``u0``.
 
+    With a thickness the descent runs without self-contact and its minimum is made a
+    contact equilibrium (the nodes inside another part's tube get pairs,
+    :func:`contact_pairs_of`): a descent may pass the strip through itself on the way.
+
     Phase 1: trust-region Newton with the exact Hessian (the subproblem solved exactly on
     its eigen-decomposition, More & Sorensen 1983; radius 1 to start, as scipy's
     ``trust-exact``) on the energy plus an exterior penalty (k/2) sum min(z_k, 0)^2,
@@ -386,6 +530,10 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
     :func:`solve_equilibrium` from the penalty minimum, with the penetrating nodes as the
     initial contacts, makes it an exact KKT point.
     """
+    if strip.thickness > 0.0:
+        # descent without self-contact (its penalty knows the ground only), then contact
+        return _with_self_contact(strip, minimize_energy(strip.with_(thickness=0.0), u0, tol,
+                                                         max_iter), tol)
     u = np.array(u0, dtype=float)
     # 10 B / h^3: the penetration r / k is ~1e-5 (r ~ q h), close enough for the polish to
     # start on the right contact set; measured at n = 100, x = 4, Delta = 1.1: 57 trust
@@ -415,6 +563,72 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
     # contacts: penetrating, or within the penalty's reach of the ground
     act = z <= 1e-9
     return solve_equilibrium(strip, u, active=act, tol=tol)
+
+
+def contact_pairs_of(strip: DiscreteStrip, u) -> np.ndarray:
+    """Self-contact pairs (m, 3) for the nodes of ``u`` inside the tube of their closest
+    tested segment (a state computed without contact, e.g. the hairpin whose tail lies
+    on or through the base): a point pair with the segment's end node where the closest
+    point is that end, else a line pair on the side of the segment's line where the
+    node's neighbours along the strip lie (the node itself may lie on the line, as the
+    tail's tip resting on the ground on the base does; a whole layer on the line rests on
+    its upper side). Only nodes nearer the free end than their segment are paired (the
+    free end's layer rests on the other: the pairs the other way are redundant with it
+    where the layers are parallel, :func:`~elastocap.strip.model.redundant_pair`, and their
+    side is ill-defined where the state without contact has the layers through each
+    other); the active-set Newton method adds any that end inside a tube."""
+    jc, dist, _d, w = closest_segments(strip, u)
+    X = strip.positions(u)
+    held = {}
+    # nodes nearer the free end first: where two layers lie on each other (the tail on the
+    # base, both on the ground without contact) the free end's layer rests on the other,
+    # and the pairs the other way are redundant with it (redundant_pair)
+    for i in np.flatnonzero(dist < strip.thickness)[::-1]:
+        j = int(jc[i])
+        if j > i:
+            # the layer nearer the free end rests on the other: its nodes are paired, the
+            # other's nodes only by the active-set Newton method if they end inside a tube
+            continue
+        if w[i] < 0.0 or w[i] > 1.0:
+            held[int(i)] = (j if w[i] < 0.0 else j + 1, 0)
+            continue
+        if redundant_pair(u, i, j, held):
+            continue
+        e = X[j + 1] - X[j]
+        nb = [k for k in (i - 1, i + 1) if 0 <= k <= strip.n]
+        side = sum(e[0] * (X[k, 1] - X[j, 1]) - e[1] * (X[k, 0] - X[j, 0]) for k in nb)
+        if side == 0.0:  # a layer on the segment's line: it rests on the upper side
+            side = e[0]
+        held[int(i)] = (j, 1 if side >= 0.0 else -1)
+    return np.array([(i, *held[i]) for i in sorted(held)], dtype=np.int64).reshape(-1, 3)
+
+
+def _with_self_contact(strip, eq, tol):
+    """A state of the strip without contact (``eq``) made an equilibrium with contact: the
+    nodes in another part's tube get pairs (:func:`contact_pairs_of`) and leave the ground
+    (a tail node resting on the base rests on it, not on the ground), then the active-set
+    Newton method."""
+    if not eq.success:
+        return eq
+    # continuation in the thickness: d / 64, then d / 16, 2 d / 16, ..., d. The state
+    # without contact has its layers on (or through) each other, and Newton from it with
+    # the full d swung the tail through the base (n = 286, 429 at x = 3, Delta = 1.2:
+    # "singular", pairs all along the strip); at d / 64 only the nodes inside the thin tube
+    # get pairs (contact_pairs_of), and from there each solve moves the layers by d / 16
+    # at most, its own active-set rule adding and releasing pairs (pairing every node
+    # inside the full tube at once forced the tail's end flat on the base: Newton cycled)
+    act = eq.active.copy()
+    P = contact_pairs_of(strip.with_(thickness=strip.thickness / 64), eq.u)
+    act[P[:, 0]] = False
+    for f in (1 / 64, *np.arange(1, _THICKNESS_STEPS + 1) / _THICKNESS_STEPS):
+        eq = solve_equilibrium(strip.with_(thickness=strip.thickness * f), eq.u,
+                               active=act, tol=tol, pairs=P)
+        if not eq.success:
+            break
+        act, P = eq.active, eq.pairs
+    if eq.success:
+        eq = solve_equilibrium(strip, eq.u, active=act, tol=tol, pairs=P)  # this strip's
+    return eq
 
 
 def prolong(coarse: DiscreteStrip, u, fine: DiscreteStrip) -> np.ndarray:
@@ -472,8 +686,11 @@ def wrapped_state(strip: DiscreteStrip) -> Equilibrium:
 def unstable_mode(strip: DiscreteStrip, eq: Equilibrium) -> np.ndarray:
     """Eigenvector of the most negative eigenvalue of the Lagrangian Hessian on the
     tangent space of the strongly active contacts (shape (n + 1,), unit max norm)."""
-    H = lagrangian_hessian(strip, eq.u, eq.reactions)
+    H = lagrangian_hessian(strip, eq.u, eq.reactions, eq.pairs, eq.pair_forces)
     Z = _tangent_basis(strip, eq.u, np.flatnonzero(_strong_weak(strip, eq)[0]))
+    if len(eq.pairs):
+        Z = _with_pairs(strip, eq.u, Z,
+                        eq.pairs[eq.pair_forces > R_REL * strip.q * strip.h])
     _ev, V = np.linalg.eigh(Z.T @ H @ Z)
     v = Z @ V[:, 0]
     return v / np.max(np.abs(v))

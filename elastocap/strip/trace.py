@@ -50,6 +50,18 @@ Special points
     smallest Delta of a stable encapsulated state (the paper's criterion, Methods), over
     admissible states only (the strip does not cross itself and the interface does not
     cross it).
+Self-contact (a strip with ``thickness`` d > 0, :mod:`elastocap.strip.model`)
+    The held pairs (i, j, sigma) of nodes on segments (or nodes) at distance d are held like
+    the ground's nodes: one force mu_p >= 0 per pair in the fixed-set problem, its gap held
+    at 0 (:func:`active_set_problem`). Events: a pair's force crosses 0
+    (``pair_lift_off``), a node without a pair comes to d from its closest tested segment
+    (``pair_touch_down``; -1 once the strip crosses itself, so a step cannot jump through
+    the tube unseen), a pair's foot reaches the end of its segment (``pair_switch``: the
+    pair that continues it, :func:`~elastocap.strip.model.pair_switch`); the segment
+    restarts with the new pair set (:func:`_restart_pair`). A touch-down or lift-off may
+    turn Delta back: a contact fold, as at the ground. Off (d = 0) none of this runs and
+    the branches are the same bit for bit. The branch search
+    (:func:`trace_contact_branches`) runs without self-contact and refuses a thickness.
 BLAS threads
     The trace makes thousands of small dense LAPACK calls ((n + |A|)^2 with n ~ 150-300).
     With two OpenBLAS threads on a shared 2-core machine they ran 10-17x slower than with
@@ -94,12 +106,19 @@ from continuation import (
 )
 from elastocap._version import __version__
 from elastocap.branchset import BranchModel, BranchSet
+from elastocap.geometry import count_crossings
 from elastocap.scene import Scene, SceneError
 from elastocap.strip.model import (
     DiscreteStrip,
+    closest_segments,
     discrete_strip_for,
     is_encapsulated,
+    pair_gaps,
+    pair_hessian,
+    pair_jacobian,
+    pair_switch,
     point_measures,
+    redundant_pair,
 )
 from elastocap.strip.solve import (
     R_REL,
@@ -165,6 +184,29 @@ _START_U = 1e-8
 # ~1e-9 in Delta apart are within this; merging them moves the later one by less than
 # the corrector's tolerance (newton_tol 1e-9) moves a point.
 _SIMULTANEOUS = 1e-8
+# Event location with self-contact (arclength, relative): the pairs' gaps and feet are
+# differences of positions of nodes far apart along the strip, and on the arc's corrected
+# points they carry noise of ~1e-11 (measured at x = 3, n = 100, a pair's foot at the end
+# of its segment: signs alternating at values 1e-13 .. 7e-12 near the root), where Brent's
+# method at the default 1e-12 ran out of its 60 iterations. 1e-10 is still ~1e-8 of the
+# discretization error of any located Delta. Only segments that hold pairs use it: the
+# ground's simultaneous events (_SIMULTANEOUS) need the default (at x = 3, n = 286 on the
+# open branch, two ground events at one Delta located to 1e-10 were not merged, and the
+# restart between them left a reaction negative).
+_SELF_LOCATE_TOL = 1e-10
+# A node that comes within this fraction of d of the thickness and leaves again grazes:
+# the held contacts carry the tip at exactly d over the flat base, so as the tip passes
+# over a base node their distance is d at one instant (a minimum, no crossing), and the
+# corrector holds the pairs' gaps only to newton_tol / c (3e-12 at n = 100, measured: a
+# "touch-down" of that node 3.5e-9 in Delta before the tip's foot reached it). 1e-8 d is
+# above that and far below any physical gap.
+_GRAZE = 1e-8
+# A segment with self-contact whose event values start below this (dimensionless: forces
+# and gaps over the node weight, feet in edges) is refused: a violated constraint at the
+# start keeps the minimum negative, and no event could fire on it (measured at x = 3,
+# n = 429: a pair force at -0.54 q h all along a segment after two simultaneous switches).
+# Round-off at a restart is ~1e-10.
+_START_VIOLATION = 1e-6
 # A contact point within this (relative, in Delta) of a node is on it: there the side of
 # the one-sided dF/dDelta is the way the segment goes (Brent locates a kink to ~1e-12).
 _ON_KINK = 1e-11
@@ -208,6 +250,16 @@ class ActiveSetEvent:
     alternatives : tuple of (tuple of int, int)
         The other valid ways on from here, (nodes switched, index at the event): branches
         that start at this point and were not traced.
+    pairs : ndarray of int, shape (m, 3)
+        The self-contact pairs held up to the event (a strip with a thickness).
+    pair_forces : ndarray, shape (m,)
+        Their forces at the event (force).
+    pair : tuple
+        For a self-contact event (kinds ``pair_lift_off``: a pair's force crosses 0,
+        ``pair_touch_down``: a node reaches the thickness from its closest tested segment,
+        ``pair_switch``: a pair's form stops holding, its foot at the end of its segment,
+        :func:`~elastocap.strip.model.pair_switch`), the pair (i, j, sigma) concerned;
+        ``node`` is i and ``value`` the force, the gap or the pair's region value.
     """
 
     kind: str
@@ -220,6 +272,9 @@ class ActiveSetEvent:
     switched: tuple = ()
     followed: tuple = ()
     alternatives: tuple = ()
+    pairs: np.ndarray | None = None
+    pair_forces: np.ndarray | None = None
+    pair: tuple = ()
 
 
 @dataclass
@@ -250,6 +305,10 @@ class BranchSegment:
     branch : continuation.Branch
         The raw continuation result (all points, including the one past the event).
     status, message : str
+    pairs : ndarray of int, shape (m_p, 3)
+        Held self-contact pairs (i, j, sigma) (empty without a thickness).
+    pair_forces : ndarray, shape (m, m_p)
+        Their forces (force) at the points.
     """
 
     active: np.ndarray
@@ -264,6 +323,8 @@ class BranchSegment:
     branch: Branch
     status: str
     message: str
+    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=np.int64))
+    pair_forces: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 @dataclass
@@ -329,7 +390,7 @@ class _Cache:
         return s
 
 
-def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, dict]:
+def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[FunctionProblem, dict]:
     """The fixed-contact-set problem F(v, Delta) = 0 as a :class:`continuation.Problem`.
 
     Parameters
@@ -338,17 +399,22 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
         Supplies everything but Delta.
     active : ndarray of bool, shape (n + 1,)
         Held nodes A.
+    pairs : array_like of int, shape (m, 3), optional
+        Held self-contact pairs P (i, j, sigma) (a strip with a thickness): their gaps
+        (:func:`~elastocap.strip.model.pair_gaps`) are held at 0 like the ground's, with
+        one contact force mu_p per pair, unknowns after r_A.
 
     Returns
     -------
     problem : continuation.FunctionProblem
-        Unknowns v = (u, r_A), shape (n + 1 + |A|,); ``hessian`` / ``constraint_jacobian``
-        give the Lagrangian Hessian (N, N) and the held constraints' gradients (|A|, N),
+        Unknowns v = (u, r_A, mu_P), shape (n + 1 + |A| + |P|,); ``hessian`` /
+        ``constraint_jacobian`` give the Lagrangian Hessian (N, N) and the held constraints' gradients (|A|, N),
         N = n + 1, as in F (below; for the stability index); observables ``energy``,
         ``min_reaction`` (force), ``min_gap`` (length).
     tools : dict
-        ``split(v) -> (u, r)`` with r of shape (n + 1,), ``join(u, r) -> v``, ``A`` (the
-        held node indices), ``c`` (the gap scale B / h^3).
+        ``split(v) -> (u, r)`` with r of shape (n + 1,), ``join(u, r, mu=None) -> v``,
+        ``mu(v)`` (the pair forces, shape (m,)), ``A`` (the held node indices), ``P`` (the
+        held pairs), ``c`` (the gap scale B / h^3).
 
     Notes
     -----
@@ -366,6 +432,12 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
     A = np.flatnonzero(act)
     free_nodes = np.flatnonzero(~act)
     na = A.size
+    P = np.zeros((0, 3), dtype=np.int64) if pairs is None else \
+        np.asarray(pairs, dtype=np.int64).reshape(-1, 3)
+    npr = P.shape[0]
+    if npr and not strip.thickness > 0.0:
+        raise ValueError(f"pairs: got {npr} self-contact pairs; expected none for a strip "
+                         "without a thickness")
     c = strip.B / strip.h**3
     cache = _Cache(strip)
     idx = np.arange(1, N)
@@ -378,24 +450,33 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
 
     def split(v):
         r = np.zeros(N)
-        r[A] = rs * v[N:]
+        r[A] = rs * v[N:N + na]
         return v[:N], r
 
-    def join(u, r):
-        return np.concatenate([u, np.asarray(r)[A] / rs])
+    def mu_of(v):
+        return rs * np.asarray(v[N + na:])
+
+    def join(u, r, mu=None):
+        if not npr:
+            return np.concatenate([u, np.asarray(r)[A] / rs])
+        return np.concatenate([u, np.asarray(r)[A] / rs, np.asarray(mu) / rs])
 
     def residual(v, p):
         s = cache.at(p)
         if s is None:
             # a Newton iterate put the drop off the strip: a failed step for the
             # continuation (it halves the step), not an exception
-            return np.full(N + na, np.nan)
+            return np.full(N + na + npr, np.nan)
         u, r = split(v)
         _E, g, _H = s.derivatives(u, hessian=False)
         zs = s.heights(u)
         z = zs[A]
         z[1:] -= zs[A[:-1]]
-        return np.concatenate([g - s.reaction_forces(u, r), c * z])
+        if not npr:
+            return np.concatenate([g - s.reaction_forces(u, r), c * z])
+        gp, _w = pair_gaps(s, u, P)
+        stat = g - s.reaction_forces(u, r) - pair_jacobian(s, u, P).T @ mu_of(v)
+        return np.concatenate([stat, c * z, c * gp])
 
     def lagrangian_hessian(v, p):
         s = cache.at(p)
@@ -403,17 +484,23 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
         W = s.hessian(u)
         rs = np.cumsum(r[::-1])[::-1]
         W[idx, idx] += s.h * np.sin(u[1:]) * rs[1:]
+        if npr:
+            W -= pair_hessian(s, u, P, mu_of(v))
         return W
 
     def jacobian(v, p):
         s = cache.at(p)
         u, _r = split(v)
         G = s.constraint_jacobian(u, A)
-        J = np.zeros((N + na, N + na))
+        J = np.zeros((N + na + npr, N + na + npr))
         J[:N, :N] = lagrangian_hessian(v, p)
-        J[:N, N:] = -rs * G.T
-        J[N:, :N] = c * G
-        J[N + 1:, :N] -= c * G[:-1]
+        J[:N, N:N + na] = -rs * G.T
+        J[N:N + na, :N] = c * G
+        J[N + 1:N + na, :N] -= c * G[:-1]
+        if npr:
+            Gp = pair_jacobian(s, u, P)
+            J[:N, N + na:] = -rs * Gp.T
+            J[N + na:, :N] = c * Gp
         return J
 
     c0, h = strip.L - strip.x_end, strip.h
@@ -443,6 +530,8 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
         G = cache.at(p).constraint_jacobian(v[:N], A)
         D = G.copy()
         D[1:] -= G[:-1]
+        if npr:
+            D = np.vstack([D, pair_jacobian(cache.at(p), v[:N], P)])
         return D
 
     def observables(v, p):
@@ -455,10 +544,11 @@ def active_set_problem(strip: DiscreteStrip, active) -> tuple[FunctionProblem, d
 
     prob = FunctionProblem(residual, jacobian=jacobian, dfdp=dfdp,
                            hessian=lagrangian_hessian,
-                           constraint_jacobian=constraint_jacobian if na else None,
-                           observables=observables, name=f"discrete strip, |A| = {na}")
-    return prob, {"split": split, "join": join, "A": A, "c": c, "cache": cache,
-                  "side": side, "nearest_kink": nearest_kink}
+                           constraint_jacobian=constraint_jacobian if na or npr else None,
+                           observables=observables, name=f"discrete strip, |A| = {na}" +
+                           (f", |P| = {npr}" if npr else ""))
+    return prob, {"split": split, "join": join, "mu": mu_of, "A": A, "P": P, "c": c,
+                  "cache": cache, "side": side, "nearest_kink": nearest_kink}
 
 
 def _kink_events(strip, v0, p0, sign):
@@ -493,17 +583,44 @@ def _event_function(strip, tools, guard, v0, p0):
     N = strip.size
     free_nodes = np.setdiff1d(np.arange(N), A)
     scale = strip.q * strip.h if strip.q > 0.0 else 1.0
+    sc = strip.thickness > 0.0
+    P = tools["P"]
+    npr = P.shape[0]
+    unpaired = np.setdiff1d(np.arange(N), P[:, 0])
+    held = {int(i): (int(j), int(sg)) for i, j, sg in P}
 
     def values(v, p):
         u, r = split(v)
         st = cache.at(p)
         z = st.heights(u)
-        val = np.full(N + 1, np.inf)
+        val = np.full(N + 1 + (2 * npr + 1 if sc else 0), np.inf)
         val[A] = r[A] / scale
         val[free_nodes] = c * z[free_nodes] / scale
         # last entry: the contact lines closing around the drop (ends the branch)
         stop = CHORD_STOP * st.delta
         val[N] = (st.chord(u) - stop) / stop
+        if sc:
+            # self-contact (_pair_event_layout): the held pairs' forces, the gap of the
+            # unpaired nodes to their closest tested segment (-1 once the rod crosses
+            # itself: a step cannot jump through the tube unseen), the pairs' feet
+            X = st.positions(u)
+            if npr:
+                val[N + 1:N + 1 + npr] = tools["mu"](v) / scale
+                val[N + 2 + npr:] = pair_gaps(st, u, P)[1]
+            jc, dist, _d, _w = closest_segments(st, u, X)
+            dist = dist[unpaired]
+            if npr:
+                # a node whose pair would be redundant with a held one is not tested
+                # (solve_equilibrium does not add it either)
+                for a, i in enumerate(unpaired):
+                    if dist[a] < 2.0 * st.thickness and redundant_pair(u, i, jc[i], held):
+                        dist[a] = np.inf
+            # less _GRAZE: a node the held contacts carry past another at exactly d (the
+            # tip sliding over a node of the lying base) grazes, not touches
+            val[N + 1 + npr] = c * (float(np.min(dist)) - (1.0 - _GRAZE) * st.thickness
+                                    ) / scale if unpaired.size else np.inf
+            if count_crossings(X, X, True, 0, N):
+                val[N + 1 + npr] = -1.0
         if guard and abs(p - p0) <= _START_TOL and \
                 float(np.max(np.abs(v[:N] - v0[:N]))) <= _START_U:
             val[list(guard)] = math.inf
@@ -538,12 +655,15 @@ def _tangent(prob, v, p, orient):
 
 
 # --------------------------------------------------------------------------- driver
-def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=()):
-    prob, tools = active_set_problem(strip, active)
-    v0 = tools["join"](u0, r0)
+def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pairs=None,
+             mu0=None):
+    prob, tools = active_set_problem(strip, active, pairs)
+    v0 = tools["join"](u0, r0, mu0)
     p0 = float(strip.delta)
     g, values = _event_function(strip, tools, guard, v0, p0)
     st = settings.replace(p_min=lo, p_max=hi)
+    if tools["P"].shape[0]:
+        st = st.replace(locate_tol=max(st.locate_tol, _SELF_LOCATE_TOL))
     if settings.direction == 0 and tangent is None:
         raise ValueError("settings.direction: got 0; expected +1 or -1 (a chain of segments "
                          "follows one way; trace twice for both)")
@@ -554,8 +674,30 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=()):
         # direction = -1, which turned a restarted downward segment back up)
         st = st.replace(direction=1)
     events = {"contact": g, **_kink_events(strip, v0, p0, sign)}
+    if strip.thickness > 0.0:
+        # a constraint already violated at the start would keep the event function
+        # negative all along, and no later event could fire
+        vals = values(v0, p0)
+        if float(np.min(vals)) < -_START_VIOLATION:
+            k = int(np.argmin(vals))
+            return prob, tools, _empty(
+                f"the segment at Delta = {p0:.12g} starts with event value {k} at "
+                f"{vals[k]:.3g} (a constraint violated): its events could not fire; try a "
+                "smaller ds0"), values
     br = continue_branch(prob, v0, p0, st, events=events, stop_on=tuple(events),
                          tangent=tangent)
+    if strip.thickness > 0.0 and len(br.p):
+        # the same at the corrected first point (a restart at two nearly simultaneous
+        # self-contact events can start a hair inside a tube: measured at x = 3, n = 429,
+        # a base node 2e-9 inside the tail's first free segment where the tail leaves
+        # the base, which masked every later event of that segment)
+        vals = values(br.u[0], br.p[0])
+        if float(np.min(vals)) < -_START_VIOLATION:
+            k = int(np.argmin(vals))
+            return prob, tools, _empty(
+                f"the segment at Delta = {br.p[0]:.12g} starts with event value {k} at "
+                f"{vals[k]:.3g} (a constraint violated at two nearly simultaneous contact "
+                "events): its events could not fire"), values
     return prob, tools, br, values
 
 
@@ -591,6 +733,8 @@ def _collect(strip, active, prob, tools, br, values):
             kind, val = ("contact_point_on_node", float(sc - k * st.h))
         elif k == strip.size:
             kind, k, val = "contact_lines_meet", -1, float(cache.at(ev_sp.p).chord(u))
+        elif k > strip.size:
+            kind, k, val, pair = _pair_event(strip, tools, ev_sp.u, ev_sp.p, k)
         else:
             z = cache.at(ev_sp.p).heights(u)
             # the located node first, then any that switch with it (_SIMULTANEOUS)
@@ -601,23 +745,32 @@ def _collect(strip, active, prob, tools, br, values):
             kind, _k, val = switched[0]
         event = ActiveSetEvent(kind, k, float(ev_sp.p), u.copy(), r.copy(), val,
                                float(ev_sp.precision), switched)
+        if tools["P"].shape[0] or strip.thickness > 0.0:
+            event.pairs, event.pair_forces = tools["P"].copy(), tools["mu"](ev_sp.u)
+            if k >= 0 and kind.startswith("pair_"):
+                event.pair = pair
     I = [int(i) for i in br.stability[:m]]
     if stopped:
         I.append(_index(prob, ev_sp.u, ev_sp.p))
-    U, R, E, IS = [], [], [], []
+    U, R, E, IS, MU = [], [], [], [], []
+    Pp = tools["P"]
     for v, p, idx in zip(V, P, I, strict=True):
         s = cache.at(p)
         u, r = split(v)
         U.append(u.copy())
         R.append(r)
         E.append(s.energy(u))
-        if np.all(r[active] > R_REL * s.q * s.h):
+        mu = tools["mu"](v)
+        MU.append(mu)
+        if np.all(r[active] > R_REL * s.q * s.h) and np.all(mu > R_REL * s.q * s.h):
             # every held contact is strongly active: the two tangent spaces are the same
             IS.append(idx)
             continue
         eq = Equilibrium(u=u, energy=E[-1], parts={}, reactions=np.maximum(r, 0.0),
                          active=active.copy(), residual=0.0, iterations=0,
                          status="converged", message="")
+        if Pp.shape[0]:
+            eq.pairs, eq.pair_forces = Pp, np.maximum(mu, 0.0)
         IS.append(stability(s, eq)[0])
     folds = []
     for sp in br.folds:
@@ -637,7 +790,117 @@ def _collect(strip, active, prob, tools, br, values):
         folds.append(f)
     return BranchSegment(active.copy(), np.array(P), np.array(U), np.array(R), np.array(E),
                          np.array(I, dtype=int), np.array(IS, dtype=int), folds, event, br,
-                         "event" if stopped else _status_name(br), br.message)
+                         "event" if stopped else _status_name(br), br.message,
+                         Pp.copy(), np.array(MU).reshape(len(MU), Pp.shape[0]))
+
+
+def _pair_event(strip, tools, v, p, k):
+    """(kind, node, value, pair) of the self-contact event at entry k of the event values
+    (:func:`_event_function`: after the N ground entries and the chord, the m held pairs'
+    forces, the unpaired nodes' closing gap, the m pairs' feet)."""
+    N = strip.size
+    P = tools["P"]
+    m = P.shape[0]
+    st = tools["cache"].at(p)
+    u = v[:N]
+    off = k - N - 1
+    if off < m:
+        i, j, sg = (int(a) for a in P[off])
+        return "pair_lift_off", i, float(tools["mu"](v)[off]), (i, j, sg)
+    if off == m:
+        jc, dist, dsgn, w = closest_segments(st, u)
+        cand = np.setdiff1d(np.arange(N), P[:, 0])
+        held = {int(a): (int(b), int(c)) for a, b, c in P}
+        dc = np.array([np.inf if redundant_pair(u, a, jc[a], held) else dist[a] for a in cand])
+        i = int(cand[np.argmin(dc)])
+        j = int(jc[i])
+        if w[i] < 0.0 or w[i] > 1.0:
+            # the closest point is an end of the segment: a point pair with that node
+            return "pair_touch_down", i, float(dist[i] - st.thickness), \
+                (i, j if w[i] < 0.0 else j + 1, 0)
+        # the side: where the node is at the event (at the thickness, outside the tube)
+        return "pair_touch_down", i, float(dist[i] - st.thickness), \
+            (i, j, 1 if dsgn[i] >= 0.0 else -1)
+    q = off - m - 1
+    i, j, sg = (int(a) for a in P[q])
+    return "pair_switch", i, float(pair_gaps(st, u, P[q:q + 1])[1][0]), (i, j, sg)
+
+
+def _restart_pair(strip: DiscreteStrip, active, event: ActiveSetEvent, d_in):
+    """(active, u, reactions, pairs, forces, tangent, guard) of the segment that starts at
+    a self-contact event.
+
+    ``pair_lift_off``: the pair is released, the tangent chosen so that its gap opens;
+    ``pair_touch_down``: the pair (i, j, sigma) is held with force 0, the tangent chosen so
+    that its force grows (either may turn Delta back: a contact fold); ``pair_switch``: the
+    node's pair becomes the one that continues it (:func:`~elastocap.strip.model.
+    pair_switch`: the same gap there, same force), Delta going on the way it went
+    (``d_in``); where none does (the strip's end), the pair is released. Other held pairs
+    whose foot reaches the end of their segment at the same point switch with it.
+    ``guard``: the entries of the new event values that are ~0 at the start (left out
+    there, as the ground's switched nodes). The ground's held set is kept.
+    """
+    N = strip.size
+    P, mu = event.pairs.copy(), event.pair_forces.copy()
+    i, j, sg = event.pair
+    rows = {int(a): (int(b), int(c), float(f)) for (a, b, c), f in zip(P, mu, strict=True)}
+    u0, r0 = event.u, np.where(active, event.reactions, 0.0)
+    if event.kind == "pair_lift_off":
+        del rows[i]
+    elif event.kind == "pair_touch_down":
+        rows[i] = (j, sg, 0.0)
+    else:
+        nxt = pair_switch(strip, event.u, (i, j, sg))
+        if nxt is None:
+            del rows[i]
+        else:
+            rows[i] = (nxt[1], nxt[2], rows[i][2])
+    # other held pairs whose form ends here too (a tail lying flat on the base has its
+    # nodes over the base's nodes at once): switched with it, and guarded
+    also = []
+    for a, (b, c, f) in list(rows.items()):
+        if a == i:
+            continue
+        reg = pair_gaps(strip, event.u, np.array([[a, b, c]]))[1][0]
+        if reg < _SIMULTANEOUS:
+            nxt = pair_switch(strip, event.u, (a, b, c))
+            if nxt is None:
+                del rows[a]
+            else:
+                rows[a] = (nxt[1], nxt[2], f)
+                also.append(a)
+    keys = sorted(rows)
+    Pn = np.array([(a, rows[a][0], rows[a][1]) for a in keys], dtype=np.int64).reshape(-1, 3)
+    mun = np.array([rows[a][2] for a in keys])
+    m = Pn.shape[0]
+    na = int(np.count_nonzero(active))
+    extra = tuple(N + 2 + m + keys.index(a) for a in also)
+    prob, tools = active_set_problem(strip, active, Pn)
+    v0 = tools["join"](u0, r0, mun)
+    if event.kind == "pair_lift_off":
+        G = pair_jacobian(strip, event.u, np.array([[i, j, sg]]))[0]
+
+        def orient(t):
+            return G @ t[:N]
+        guard = (N + 1 + m,)
+    elif event.kind == "pair_touch_down" and i in rows:
+        q = keys.index(i)
+
+        def orient(t):
+            return t[N + na + q]
+        guard = (N + 1 + q, N + 1 + m)
+    elif event.kind == "pair_switch" and i in rows:
+        q = keys.index(i)
+
+        def orient(t):
+            return t[-1] * d_in
+        guard = (N + 2 + m + q,)
+    else:
+        def orient(t):
+            return t[-1] * d_in
+        guard = ()
+    tangent = _tangent(prob, v0, strip.delta, orient)
+    return active, u0, r0, Pn, mun, tangent, guard + extra
 
 
 def _index(prob, v, p):
@@ -684,7 +947,7 @@ def _restart(strip: DiscreteStrip, active, event: ActiveSetEvent):
         new = active.copy()
         new[group] = ~new[group]
         r0 = np.where(new, event.reactions, 0.0)
-        nprob, ntools = active_set_problem(strip, new)
+        nprob, ntools = active_set_problem(strip, new, event.pairs)
         A = ntools["A"]
 
         def rates(t, new=new, A=A):
@@ -693,7 +956,7 @@ def _restart(strip: DiscreteStrip, active, event: ActiveSetEvent):
                              else G[j] @ t[:N] for j in nodes])
 
         lead = nodes.index(group[0])
-        v0 = ntools["join"](event.u, r0)
+        v0 = ntools["join"](event.u, r0, event.pair_forces)
         tangent = _tangent(nprob, v0, strip.delta, lambda t, rates=rates, lead=lead:
                            rates(t)[lead])
         r = rates(tangent)
@@ -750,12 +1013,13 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
         raise ValueError(f"max_segments: got {max_segments}; expected >= 1")
     active = np.array(state.active, dtype=bool)
     u0, r0 = state.u.copy(), np.where(active, state.reactions, 0.0)
+    pairs, mu0 = (state.pairs, state.pair_forces) if len(state.pairs) else (None, None)
     cur, tangent, guard = strip, None, ()
     segments, events, turning = [], [], []
     status, message = "max_segments", f"stopped after max_segments = {max_segments}"
     for _ in range(max_segments):
         prob, tools, br, values = _segment(cur, u0, r0, active, lo, hi, settings, tangent,
-                                           guard)
+                                           guard, pairs, mu0)
         if len(br.p) == 0:
             status, message = _status_name(br), br.message
             break
@@ -765,7 +1029,9 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
         if seg.event is None:
             break
         kink = seg.event.kind == "contact_point_on_node"
-        if guard and not kink and seg.event.node in guard and len(seg.delta) <= 2:
+        self_contact = seg.event.kind.startswith("pair_")
+        if guard and not kink and not self_contact and seg.event.node in guard and \
+                len(seg.delta) <= 2:
             status = "restart_failed"
             message = (f"the segment restarted at Delta = {cur.delta:.12g} with node(s) "
                        f"{', '.join(str(j) for j in guard)} switched undid the switch at its "
@@ -794,12 +1060,39 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
             f" at Delta = {seg.event.delta:.12g}"
         if not restart:
             break
+        if self_contact:
+            prev = segments[-2].event if len(segments) > 1 else None
+            undo = prev is not None and prev.kind.startswith("pair_") and \
+                prev.node == seg.event.node and (
+                    {prev.kind, seg.event.kind} == {"pair_touch_down", "pair_lift_off"} or
+                    (prev.kind == seg.event.kind == "pair_switch" and
+                     pair_switch(cur, seg.event.u, seg.event.pair) is not None and
+                     pair_switch(cur, seg.event.u, seg.event.pair)[1] == prev.pair[1]))
+            if len(seg.delta) <= 2 and undo:
+                status = "restart_failed"
+                message = (f"the segment restarted at Delta = {cur.delta:.12g} "
+                           f"({segments[-2].event.kind} of node {seg.event.node}) undid it at "
+                           f"its first step ({seg.event.kind}): not transversal there; try a "
+                           "smaller ds0")
+                break
+            cur = strip.with_(delta=seg.event.delta)
+            # the way Delta went into the event: the last step that moved it (a segment
+            # between two events at the same Delta has none)
+            d_in = next((float(dd[dd != 0.0][-1]) for dd in
+                         (np.diff(x.delta) for x in reversed(segments)) if np.any(dd != 0.0)),
+                        float(settings.direction))
+            active, u0, r0, pairs, mu0, tangent, guard = _restart_pair(cur, active,
+                                                                        seg.event, d_in)
+            u0 = u0.copy()
+            continue
         if kink:
             # same contact set on the far side of the kink: the tangent from the one-sided
             # dF/dDelta there, Delta going on the same way (a corner, not a fold)
             cur = strip.with_(delta=seg.event.delta)
             u0, r0 = seg.event.u.copy(), seg.event.reactions.copy()
-            nprob, ntools = active_set_problem(cur, active)
+            if pairs is not None:
+                mu0 = seg.event.pair_forces
+            nprob, ntools = active_set_problem(cur, active, pairs)
             d_in = seg.delta[-1] - seg.delta[-2] if seg.delta.size > 1 else \
                 (tangent[-1] if tangent is not None else float(settings.direction))
             ntools["side"][0] = float(np.sign(d_in))
@@ -807,7 +1100,7 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
             def orient(t, d_in=d_in):
                 return t[-1] * d_in
 
-            tangent = _tangent(nprob, ntools["join"](u0, r0), cur.delta, orient)
+            tangent = _tangent(nprob, ntools["join"](u0, r0, mu0), cur.delta, orient)
             guard = ()
             continue
         # the next segment: updated set, from the event, away from the invalid side
@@ -816,6 +1109,8 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
         seg.event.followed = guard
         u0 = seg.event.u.copy()
         r0 = np.where(active, seg.event.reactions, 0.0)
+        if pairs is not None:
+            mu0 = seg.event.pair_forces
     if len(segments) > 1 and status != "restart_failed":
         prev, seg = segments[-2], segments[-1]
         d_in = prev.delta[-1] - prev.delta[-2] if prev.delta.size > 1 else 0.0
@@ -847,8 +1142,10 @@ _SAME = 1e-7
 
 #: What this solver does not compute (also in every summary).
 NOT_HANDLED = (
-    "rod-rod contact (the strip may cross itself: such states are marked inadmissible, "
-    "not excluded); branches not reached from the seeds (deposition and fold at "
+    "rod-rod contact in the branch search (the strip may cross itself: such states are "
+    "marked inadmissible, not excluded; a branch with contact, rod.thickness > 0, is traced "
+    "from one state by trace_discrete_branch); branches not reached from the seeds "
+    "(deposition and fold at "
     f"Delta = {', '.join(f'{d:g}' for d in SEED_DELTAS)}); only drop.wetted_length "
     "as the parameter"
 )
@@ -863,6 +1160,12 @@ def _check(scene: Scene, parameter: str, prange):
     if parameter != "drop.wetted_length":
         raise SceneError("--param", parameter, "the contact-handling strip solver traces "
                          "drop.wetted_length only")
+    if scene.rod.thickness:
+        raise SceneError("rod.thickness", scene.rod.thickness,
+                         "the branch search of the strip runs without self-contact (0); "
+                         "one branch with self-contact is traced by "
+                         "elastocap.strip.trace.trace_discrete_branch from a state of "
+                         "elastocap.strip.solve.wrapped_state")
     x = scene.distance_from_end
     if prange is None:
         prange = (0.3, min(2.2, 1.95 * x))
