@@ -96,9 +96,9 @@ _PUSH = 0.02
 def lagrangian_hessian(strip: DiscreteStrip, u, r, pairs=None, mu=None) -> np.ndarray:
     """Hessian of E - sum_k r_k z_k - sum_p mu_p gap_p in u, shape (n + 1, n + 1).
 
-    - sum_k r_k d^2 z_k / du^2 = diag_j(h sin theta_j sum_{k > j} r_k); the self-contact
-    pairs (``pairs`` (m, 3), forces ``mu`` (m,)) add -:func:`~elastocap.strip.model.
-    pair_hessian`.
+    The ground's part, ``-sum_k r_k d^2 z_k / du^2``, is
+    ``diag_j(h sin theta_j sum_{k > j} r_k)``; the self-contact pairs (``pairs`` (m, 3),
+    forces ``mu`` (m,)) add minus :func:`~elastocap.strip.model.pair_hessian`.
     """
     N = strip.size
     H = strip.hessian(u)
