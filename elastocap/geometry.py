@@ -182,9 +182,10 @@ def turning_measures(positions: np.ndarray) -> np.ndarray:
     """M = (theta(L) - theta(0)) / pi of each frame (n_frames, n_nodes, 2): summed turns.
 
     Vectorised numpy (the sum of each row of :func:`turning_angles`, numpy's pairwise
-    summation, as :func:`turning_measure`).  Not compiled: a numba version cost 0.9 s of
-    compile in the first run of a fresh install for 2-10 ms of run time saved per impact
-    (measured: docs/guide/time-stepping.md, "Compile cost").
+    summation, as :func:`turning_measure`).  Not compiled: a numba version costs 0.9 s of
+    compile in the first impact of a fresh install and saves 1-10 ms per impact (1062
+    frames of 100 edges: 2.2 ms against 1.1 ms; 4001 frames of 450 edges: about 45 ms
+    against 34 ms; measured: docs/guide/time-stepping.md, "Compile cost").
     """
     positions = np.asarray(positions, dtype=np.float64)
     out = np.empty(positions.shape[0])
