@@ -17,11 +17,18 @@ system, from ``os.wait4``) and wall time are read by this process.
    fig3-strip) and of a bare rod (bending only), one step each (left out with
    ``--first-only``).
 
+4. ``--classification``: what the output frames' classification costs once compiled
+   (the turning measures and the crossing detector, vectorised numpy in this tree): in a
+   child process with warm caches, each impact of ``CLASSIFY_CASES`` once to compile, then
+   once timed: the CPU of the whole ``run_impact``, of its time loop (``run_time``) and of
+   the calls of ``turning_measures`` and ``first_crossing_frames`` it makes.
+
 With ``--baseline REV`` (a git revision, or a folder holding a checkout) the same cases run
 from that tree too, in alternated order, ``--repeat`` rounds: medians and the ratio
 (this tree / baseline) are printed.
 
-Run: ``python benchmarks/compile_speed.py [--baseline REV|DIR] [--repeat K] [--first-only]``.
+Run: ``python benchmarks/compile_speed.py [--baseline REV|DIR] [--repeat K] [--first-only]
+[--classification]``.
 """
 
 from __future__ import annotations
@@ -77,6 +84,45 @@ else:
 
 NEW_STEPPER_CASES = ("rattle:strip", "midpoint:strip", "rattle:bare", "midpoint:bare")
 
+#: Impacts whose classification is timed (``--classification``): supp-fig5 open (1062
+#: frames of 100 edges) and encapsulated (crossings found), fig3-strip at 450 edges (4001
+#: frames) and undamped at x = 3 (4001 frames of 198 edges, the rod crossing itself).
+CLASSIFY_CASES = (("supp-fig5", {}), ("supp-fig5", {"drop.wetted_length": 4.0}),
+                  ("fig3-strip", {"numerics.n_edges": 450}),
+                  ("fig3-strip", {"drop.distance_from_end": 3.0}))
+
+#: The child of ``--classification``: ``argv[1]`` the tree, ``argv[2]`` the cases (JSON);
+#: one JSON line per case.
+CLASSIFY_SNIPPET = """
+import json, sys, time
+import elastocap
+assert elastocap.__file__.startswith(sys.argv[1]), (elastocap.__file__, sys.argv[1])
+import elastocap.impact as imp
+from elastocap.scene import load_scene
+spent = [0.0]
+def timed(f):
+    def g(*a):
+        c = time.thread_time()
+        try:
+            return f(*a)
+        finally:
+            spent[0] += time.thread_time() - c
+    return g
+imp.first_crossing_frames = timed(imp.first_crossing_frames)
+imp.turning_measures = timed(imp.turning_measures)
+for name, ov in json.loads(sys.argv[2]):
+    scene = load_scene(name, ov)
+    imp.run_impact(scene)
+    spent[0] = 0.0
+    c = time.thread_time()
+    r = imp.run_impact(scene)
+    total = time.thread_time() - c
+    print(json.dumps(dict(total=total, loop=r.run_time_s, classify=spent[0],
+                          frames=len(r.simulation.times), outcome=r.outcome,
+                          rod=r.rod_crossing_time, interface=r.interface_crossing_time,
+                          measure=r.final_measure)))
+"""
+
 
 def child(tree, case, numba_dir, stepper_dir, out_dir=None):
     """(CPU s, wall s, compile s) of one child process: ``case`` the snippet's case, or
@@ -121,12 +167,49 @@ def one_round(tree, cases):
     return res
 
 
+def classification(trees, repeat):
+    """``--classification``: per tree and case, medians over ``repeat`` processes."""
+    cases = json.dumps([list(c) for c in CLASSIFY_CASES])
+    res = {k: [] for k in trees}
+    for r in range(repeat):
+        for label in (trees if r % 2 == 0 else list(trees)[::-1]):
+            env = dict(os.environ, PYTHONPATH=trees[label])
+            with tempfile.TemporaryDirectory() as tmp:
+                env["DYNAMICS_CACHE_DIR"] = os.path.join(tmp, "s")
+                out = subprocess.run([sys.executable, "-c", CLASSIFY_SNIPPET, trees[label],
+                                      cases], env=env, cwd=trees[label], capture_output=True,
+                                     text=True)
+            if out.returncode:
+                raise SystemExit(f"{label}: {out.stderr[-3000:]}")
+            res[label].append([json.loads(line) for line in out.stdout.splitlines()])
+    print(f"\nClassification once compiled: CPU s of run_impact [wall s of its time loop] "
+          f"(of the measures and crossings), medians of {repeat} processes; load average "
+          f"at the end {os.getloadavg()[0]:.1f}")
+    for k, (name, ov) in enumerate(CLASSIFY_CASES):
+        label = name + "".join(f" {a}={b}" for a, b in ov.items())
+        line = f"{label:38s}"
+        for t in trees:
+            rows = [run[k] for run in res[t]]
+            med = {q: float(np.median([x[q] for x in rows])) for q in
+                   ("total", "loop", "classify")}
+            line += (f"  {t}: {med['total']:.3f} [{med['loop']:.3f}] "
+                     f"({med['classify'] * 1e3:.1f} ms)")
+        last = {t: res[t][-1][k] for t in trees}
+        print(line)
+        print(f"{'':38s}  frames {last['this tree']['frames']}; outcome, crossing times, "
+              "final measure: " + "; ".join(
+                  f"{t}: {v['outcome']}, {v['rod']}, {v['interface']}, {v['measure']!r}"
+                  for t, v in last.items()))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--baseline", help="git revision or folder to compare against")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--first-only", action="store_true",
                     help="only the first impact and the command line's two impacts")
+    ap.add_argument("--classification", action="store_true",
+                    help="only the cost of the classification once compiled")
     args = ap.parse_args(argv)
     cases = () if args.first_only else NEW_STEPPER_CASES
     trees = {"this tree": ROOT}
@@ -140,6 +223,9 @@ def main(argv=None):
             trees["baseline"] = tmp
     results = {k: [] for k in trees}
     try:
+        if args.classification:
+            classification(trees, args.repeat)
+            return
         for r in range(args.repeat):
             for label in (trees if r % 2 == 0 else list(trees)[::-1]):
                 results[label].append(one_round(trees[label], cases))

@@ -58,7 +58,8 @@ Where the time of an impact run goes (measured with cycle counters around each
 part of the step on supp-fig5 and fig3-strip): SHAKE 42%, the velocity projection 18%,
 bending 13-14%, the external forces (capillary, gravity) 11-14%, damping 8% (supp-fig5),
 contact, kicks and bookkeeping ~10% (fig3-strip); outside the loop, the crossing checks
-and measures of ``elastocap.impact`` take ~2%.  Section 3b of
+and measures of ``elastocap.impact`` (numpy) take 7% of a supp-fig5 impact, under 1% of
+a fig3-strip one (``benchmarks/compile_speed.py --classification``).  Section 3b of
 ``benchmarks/dynamics_speed.py`` times the runs (``--baseline REV`` beside a revision).
 
 Generated modules live in the private, content-addressed cache of :mod:`dynamics.cache`.

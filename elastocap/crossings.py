@@ -3,12 +3,21 @@
 The paper's model has no rod-rod contact and lets the drop's interface pass through the
 rod; :func:`first_crossing_frames` finds, on a sequence of frames, the first frame where
 the rod crosses itself and the first where the circular-cap interface crosses the rod.
-One compiled pass over all frames: per frame, the interface is drawn with
-``INTERFACE_POINTS`` points from the cap half-angle of
-:func:`elastocap.drop.capillary_energy_and_gradient` (the same arc as
+Per frame, the interface is drawn with ``INTERFACE_POINTS`` points from the cap
+half-angle of :func:`elastocap.drop.capillary_energy_and_gradient` (the same arc as
 :func:`elastocap.geometry.arc_points`), and the crossing test is that of
-:func:`elastocap.geometry.count_crossings` (touching end points do not count), run
-only on the segment pairs whose bounding boxes overlap.
+:func:`elastocap.geometry.count_crossings` (touching end points do not count), run only on
+the segment pairs whose bounding boxes overlap.
+
+Vectorised numpy over blocks of frames, not compiled: a compiled detector cost 2 s of
+compile in the first run of a fresh install (measured: docs/guide/time-stepping.md,
+"Compile cost").  What keeps the number of segment pairs small:
+
+* a polyline whose edge directions span less than pi (tangent angles, unwrapped, within
+  an interval shorter than pi) is monotone along the bisecting direction and cannot cross
+  itself; so two segments i < j are tested only when the edges i..j span pi or more
+  (checked per frame, then per pair of blocks of ``_BLOCK`` segments);
+* pairs of blocks whose bounding boxes do not overlap are skipped, then pairs of segments.
 """
 
 from __future__ import annotations
@@ -16,11 +25,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
-from elastocap.drop import capillary_energy_and_gradient, locate_on_rod
-from elastocap.geometry import segments_cross
+from elastocap.drop import capillary_energy_and_gradient
+from elastocap.geometry import FRAME_BLOCK, turning_angles
 
 __all__ = [
     "INTERFACE_POINTS",
@@ -33,129 +41,227 @@ __all__ = [
 #: Points on the drawn interface (its ends sit on the rod and are not tested).
 INTERFACE_POINTS = 80
 
+#: Frames in the first block of :func:`first_crossing_frames`, doubled from block to block
+#: up to ``FRAME_BLOCK``: a crossing early in a run is found without testing every frame,
+#: and a run without one is tested in a few large blocks.
+_FIRST_FRAMES = 64
 
-@numba.njit(cache=True)
-def _point_at(x, s_nodes, s):
-    """Position at arclength s on the polyline (linear interpolation, clipped to the ends)."""
-    i, w = locate_on_rod(s, s_nodes)
-    return (1.0 - w) * x[i, 0] + w * x[i + 1, 0], (1.0 - w) * x[i, 1] + w * x[i + 1, 1]
-
-
-@numba.njit(cache=True)
-def _interface_points(x, s_nodes, area, s1, s2, gamma, grad, out):
-    """Fill ``out`` (k, 2) with the interface arc from x(S1) to x(S2); ``grad`` is scratch."""
-    _e, tau, _kappa = capillary_energy_and_gradient(x, s_nodes, s1, s2, area, gamma, grad)
-    x1x, x1z = _point_at(x, s_nodes, s1)
-    x2x, x2z = _point_at(x, s_nodes, s2)
-    cx = x2x - x1x
-    cz = x2z - x1z
-    d = math.sqrt(cx * cx + cz * cz)
-    mx = 0.5 * (x1x + x2x)
-    mz = 0.5 * (x1z + x2z)
-    k = out.shape[0]
-    if d == 0.0:
-        for j in range(k):
-            out[j, 0] = mx
-            out[j, 1] = mz
-        return
-    ux = cx / d
-    uz = cz / d
-    st = math.sin(tau)
-    ct = math.cos(tau)
-    for j in range(k):
-        v = -1.0 + 2.0 * j / (k - 1)
-        if abs(tau) < 1e-8:
-            along = v
-            across = 0.5 * tau * (1.0 - v * v)
-        else:
-            along = math.sin(tau * v) / st
-            across = (math.cos(tau * v) - ct) / st
-        out[j, 0] = mx + 0.5 * d * (along * ux - across * uz)
-        out[j, 1] = mz + 0.5 * d * (along * uz + across * ux)
-
-
-#: Segments per block of the bounding-box culling in :func:`_any_crossing`.  With 8, a rod
-#: of 100 edges far from touching itself needs 1.3e3 block tests and ~2e2 exact segment
-#: tests instead of 5e3 exact tests (measured: supp-fig5, 1062 frames: 35 ms -> 3 ms).
+#: Segments per block of the bounding-box culling.
 _BLOCK = 8
 
-
-@numba.njit(cache=True)
-def _segment_boxes(b, box, bbox):
-    """Bounding boxes of the segments of polyline b (k, 2) into ``box`` (k-1, 4) as (xmin,
-    xmax, zmin, zmax), and of blocks of ``_BLOCK`` consecutive segments into ``bbox``."""
-    m = b.shape[0] - 1
-    for j in range(m):
-        box[j, 0] = min(b[j, 0], b[j + 1, 0])
-        box[j, 1] = max(b[j, 0], b[j + 1, 0])
-        box[j, 2] = min(b[j, 1], b[j + 1, 1])
-        box[j, 3] = max(b[j, 1], b[j + 1, 1])
-    nb = (m + _BLOCK - 1) // _BLOCK
-    for J in range(nb):
-        j0 = J * _BLOCK
-        j1 = min(j0 + _BLOCK, m)
-        bbox[J, 0] = box[j0, 0]
-        bbox[J, 1] = box[j0, 1]
-        bbox[J, 2] = box[j0, 2]
-        bbox[J, 3] = box[j0, 3]
-        for j in range(j0 + 1, j1):
-            bbox[J, 0] = min(bbox[J, 0], box[j, 0])
-            bbox[J, 1] = max(bbox[J, 1], box[j, 1])
-            bbox[J, 2] = min(bbox[J, 2], box[j, 2])
-            bbox[J, 3] = max(bbox[J, 3], box[j, 3])
+#: A sub-polyline whose edge directions span less than pi - _ANGLE_MARGIN (radians) is not
+#: tested for self-crossings: it is monotone along its bisecting direction, with every
+#: edge advancing by at least |e| sin(_ANGLE_MARGIN / 2), far above round-off (the
+#: angles themselves are accurate to ~1e-13 after a cumulative sum over 10^3 edges).
+_ANGLE_MARGIN = 1e-6
 
 
-@numba.njit(cache=True)
-def _crossing_pairs(a, b, same, skip_a0, skip_a1, box, bbox, out):
-    """The crossings of :func:`elastocap.geometry.count_crossings(a, b, same, skip_a0,
-    skip_a1) <elastocap.geometry.count_crossings>`, testing only the segment pairs whose
-    bounding boxes overlap: writes the pairs (segment of a, segment of b) into ``out``
-    (m, 2), stopping once it is full; returns how many it wrote.
-
-    ``box`` and ``bbox`` hold the boxes of b's segments (:func:`_segment_boxes`).  A pair of
-    segments with disjoint boxes cannot cross; the exact test on the others is the same
-    arithmetic as ``count_crossings``, so the answer is the same except where that test is
-    decided by round-off alone (segments collinear to machine precision, whose computed
-    crossing parameters are then arbitrary), which this one reports as no crossing.
-    """
-    mb = b.shape[0] - 1
-    nb = (mb + _BLOCK - 1) // _BLOCK
-    m = 0
-    for i in range(max(skip_a0, 0), min(a.shape[0] - 1, skip_a1)):
-        ax, az = a[i, 0], a[i, 1]
-        rx, rz = a[i + 1, 0] - ax, a[i + 1, 1] - az
-        x0 = min(a[i, 0], a[i + 1, 0])
-        x1 = max(a[i, 0], a[i + 1, 0])
-        z0 = min(a[i, 1], a[i + 1, 1])
-        z1 = max(a[i, 1], a[i + 1, 1])
-        j0 = i + 2 if same else 0
-        for J in range(j0 // _BLOCK, nb):
-            if (bbox[J, 0] > x1 or bbox[J, 1] < x0 or bbox[J, 2] > z1
-                    or bbox[J, 3] < z0):
-                continue
-            for j in range(max(j0, J * _BLOCK), min(J * _BLOCK + _BLOCK, mb)):
-                if box[j, 0] > x1 or box[j, 1] < x0 or box[j, 2] > z1 or box[j, 3] < z0:
-                    continue
-                bx, bz = b[j, 0], b[j, 1]
-                if segments_cross(ax, az, rx, rz, bx, bz, b[j + 1, 0] - bx,
-                                  b[j + 1, 1] - bz):
-                    out[m, 0] = i
-                    out[m, 1] = j
-                    m += 1
-                    if m == out.shape[0]:
-                        return m
-    return m
+def _locate(s, s_nodes):
+    """Edge index i and fraction w with s = (1-w) s_nodes[i] + w s_nodes[i+1]:
+    :func:`elastocap.drop.locate_on_rod` (clipped to the ends), for arrays of s."""
+    n = s_nodes.shape[0]
+    i = np.clip(np.searchsorted(s_nodes, s, side="right") - 1, 0, n - 2)
+    w = (s - s_nodes[i]) / (s_nodes[i + 1] - s_nodes[i])
+    w = np.where(s <= s_nodes[0], 0.0, np.where(s >= s_nodes[n - 1], 1.0, w))
+    return i, w
 
 
-@numba.njit(cache=True)
-def _any_crossing(a, b, same, skip_a0, skip_a1, box, bbox):
-    """``count_crossings(a, b, same, skip_a0, skip_a1) > 0``, stopping at the first
-    crossing (:func:`_crossing_pairs`)."""
-    first = np.empty((1, 2), dtype=np.int64)
-    return _crossing_pairs(a, b, same, skip_a0, skip_a1, box, bbox, first) > 0
+def _interface_points(x, s_nodes, caps):
+    """The drawn interfaces (F, INTERFACE_POINTS, 2) of frames x (F, n, 2) with capillary
+    parameters caps (F, 4) = [area, S1, S2, gamma] (the arithmetic of
+    :func:`elastocap.geometry.arc_points` with the samples -1 + 2 j / (k - 1))."""
+    nf, n = x.shape[0], x.shape[1]
+    tau = np.empty(nf)
+    grad = np.zeros((n, 2))
+    for k in range(nf):
+        # the cap half-angle (the compiled kernel the capillary force uses)
+        tau[k] = capillary_energy_and_gradient(x[k], s_nodes, caps[k, 1], caps[k, 2],
+                                               caps[k, 0], caps[k, 3], grad)[1]
+    f = np.arange(nf)
+    ends = []
+    for s in (caps[:, 1], caps[:, 2]):
+        i, w = _locate(s, s_nodes)
+        ends.append(((1.0 - w) * x[f, i, 0] + w * x[f, i + 1, 0],
+                     (1.0 - w) * x[f, i, 1] + w * x[f, i + 1, 1]))
+    (x1x, x1z), (x2x, x2z) = ends
+    cx = x2x - x1x
+    cz = x2z - x1z
+    d = np.sqrt(cx * cx + cz * cz)
+    mx = 0.5 * (x1x + x2x)
+    mz = 0.5 * (x1z + x2z)
+    k = INTERFACE_POINTS
+    v = -1.0 + 2.0 * np.arange(k) / (k - 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ux = (cx / d)[:, None]
+        uz = (cz / d)[:, None]
+        t = tau[:, None]
+        st = np.sin(t)
+        flat = np.abs(t) < 1e-8
+        along = np.where(flat, v, np.sin(t * v) / st)
+        across = np.where(flat, 0.5 * t * (1.0 - v * v), (np.cos(t * v) - np.cos(t)) / st)
+        hd = (0.5 * d)[:, None]
+        out = np.empty((nf, k, 2))
+        out[:, :, 0] = mx[:, None] + hd * (along * ux - across * uz)
+        out[:, :, 1] = mz[:, None] + hd * (along * uz + across * ux)
+    # a chord of length 0: every point at the middle
+    out[d == 0.0] = np.stack([mx, mz], axis=1)[d == 0.0][:, None, :]
+    return out
 
 
-@numba.njit(cache=True)
+def _blocks(v, reduce):
+    """``reduce`` (np.minimum or np.maximum) of the points v (F, n) of each block of
+    ``_BLOCK`` segments (points 8 K .. 8 K + 8), (F, nb); the last block padded with the
+    last point."""
+    nf, n = v.shape
+    nb = -(-(n - 1) // _BLOCK)
+    w = np.empty((nf, nb * _BLOCK + 1))
+    w[:, :n] = v
+    w[:, n:] = v[:, -1:]
+    last = w[:, _BLOCK::_BLOCK]  # the first point of the next block closes a block
+    w = w[:, :nb * _BLOCK].reshape(nf, nb, _BLOCK)
+    # halving by elementwise calls (a reduction over a short last axis is 5x slower)
+    k = _BLOCK
+    while k > 1:
+        k //= 2
+        w = reduce(w[:, :, :k], w[:, :, k:2 * k])
+    return reduce(w[:, :, 0], last)
+
+
+def _boxes(p):
+    """The coordinates (x, z), each (F, n) and contiguous, of polylines p (F, n, 2), and the
+    boxes (xlo, xhi, zlo, zhi) of their blocks of ``_BLOCK`` consecutive segments, each
+    (F, nb)."""
+    px, pz = np.ascontiguousarray(p[:, :, 0]), np.ascontiguousarray(p[:, :, 1])
+    return (px, pz), (_blocks(px, np.minimum), _blocks(px, np.maximum),
+                      _blocks(pz, np.minimum), _blocks(pz, np.maximum))
+
+
+def _segment_box(coords, f, i):
+    """The boxes (xlo, xhi, zlo, zhi) of segments i of frames f."""
+    px, pz = coords
+    k = f * px.shape[1] + i
+    x0, x1, z0, z1 = np.take(px, k), np.take(px, k + 1), np.take(pz, k), np.take(pz, k + 1)
+    return np.minimum(x0, x1), np.maximum(x0, x1), np.minimum(z0, z1), np.maximum(z0, z1)
+
+
+def _overlap(a, b):
+    """Do the boxes a and b (xlo, xhi, zlo, zhi) overlap (closed boxes: touching ones
+    do)?"""
+    return (a[0] <= b[1]) & (b[0] <= a[1]) & (a[2] <= b[3]) & (b[2] <= a[3])
+
+
+def _take(box, f, i):
+    """The boxes at (frame f, block i) (flat indices: faster than a pair of index
+    arrays)."""
+    k = f * box[0].shape[1] + i
+    return tuple(np.take(v, k) for v in box)
+
+
+def _expand(f, K, L):
+    """The segment pairs (f, i, j) of the block pairs (f, K, L), _BLOCK**2 each."""
+    r = np.arange(_BLOCK)
+    i = (K[:, None, None] * _BLOCK + r[None, :, None])
+    j = (L[:, None, None] * _BLOCK + r[None, None, :])
+    shape = (K.shape[0], _BLOCK, _BLOCK)
+    return (np.broadcast_to(f[:, None, None], shape).ravel(),
+            np.broadcast_to(i, shape).ravel(), np.broadcast_to(j, shape).ravel())
+
+
+def _cross(a, b, f, i, j):
+    """Proper crossings of segment i of polylines a with segment j of b in frames f: the
+    test of :func:`elastocap.geometry.segments_cross` (same arithmetic), vectorised."""
+    ka = 2 * (f * a.shape[1] + i)  # flat indices of (f, i, 0) and (f, j, 0)
+    kb = 2 * (f * b.shape[1] + j)
+    a, b = a.reshape(-1), b.reshape(-1)
+    ax, az = a[ka], a[ka + 1]
+    rx, rz = a[ka + 2] - ax, a[ka + 3] - az
+    bx, bz = b[kb], b[kb + 1]
+    sx, sz = b[kb + 2] - bx, b[kb + 3] - bz
+    den = rx * sz - rz * sx
+    qx, qz = bx - ax, bz - az
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (qx * sz - qz * sx) / den
+        u = (qx * rz - qz * rx) / den
+    hit = (den != 0.0) & (1e-9 < t) & (t < 1.0 - 1e-9) & (1e-9 < u) & (u < 1.0 - 1e-9)
+    return hit, u
+
+
+def _segment_pairs(acoords, bcoords, f, i, j, ma, mb, same):
+    """The pairs (f, i, j) that index segments of both, are not adjacent (``same``) and
+    whose boxes overlap."""
+    ok = (i < ma) & (j < mb)
+    if same:
+        ok &= j >= i + 2
+    f, i, j = f[ok], i[ok], j[ok]
+    ok = _overlap(_segment_box(acoords, f, i), _segment_box(bcoords, f, j))
+    return f[ok], i[ok], j[ok]
+
+
+def _self_crossing(p):
+    """Whether each polyline of p (F, n, 2) crosses itself (adjacent segments not tested)."""
+    nf, m = p.shape[0], p.shape[1] - 1
+    out = np.zeros(nf, dtype=bool)
+    if m < 3:
+        return out
+    # tangent angle of each edge, unwrapped (edge 0 at 0)
+    theta = np.zeros((nf, m))
+    np.cumsum(turning_angles(p), axis=1, out=theta[:, 1:])
+    wide = np.ptp(theta, axis=1) >= math.pi - _ANGLE_MARGIN
+    if not wide.any():
+        return out
+    frames = np.flatnonzero(wide)
+    p, theta = p[frames], theta[frames]
+    coords, bbox = _boxes(p)
+    nb = bbox[0].shape[1]
+    # the directions of the edges of each block (and of the next block's first edge: a
+    # wider span only adds candidates), as a polyline of m + 1 values
+    theta = np.concatenate([theta, theta[:, -1:]], axis=1)
+    tmax = _blocks(theta, np.maximum)
+    tmin = _blocks(theta, np.minimum)
+    # block pairs (K, K + d): the span of the edge directions over blocks K..K+d, grown
+    # with d, and the overlap of the two blocks' boxes
+    cand = []
+    run_max, run_min = tmax, tmin
+    for d in range(nb):
+        if d:
+            run_max = np.maximum(run_max[:, :-1], tmax[:, d:])
+            run_min = np.minimum(run_min[:, :-1], tmin[:, d:])
+        keep = ((run_max - run_min >= math.pi - _ANGLE_MARGIN)
+                & _overlap([v[:, :nb - d] for v in bbox], [v[:, d:] for v in bbox]))
+        f, K = np.nonzero(keep)
+        cand.append((f, K, K + d))
+    f, i, j = _expand(*(np.concatenate(c) for c in zip(*cand)))
+    f, i, j = _segment_pairs(coords, coords, f, i, j, m, m, True)
+    hit, _u = _cross(p, p, f, i, j)
+    out[frames[f[hit]]] = True
+    return out
+
+
+def _interface_pairs(x, iface):
+    """The candidate pairs (f, i, j) of interface segment i (1 .. INTERFACE_POINTS - 3:
+    its end segments start on the rod) and rod segment j, boxes overlapping: blocks of
+    the interface against blocks of the rod, then the segments of the interface blocks
+    against the rod blocks, then the segments of both."""
+    a = iface[:, 1:INTERFACE_POINTS - 1]  # the tested segments 1 .. k - 3, from 0 here
+    acoords, ablk = _boxes(a)
+    coords, blk = _boxes(x)
+    ma, mb = a.shape[1] - 1, x.shape[1] - 1
+    f, K, L = np.nonzero(_overlap([v[:, :, None] for v in ablk],
+                                  [v[:, None, :] for v in blk]))
+    # the segments of interface block K against rod block L
+    r = np.arange(_BLOCK)
+    i = (K[:, None] * _BLOCK + r).ravel()
+    f, L = np.repeat(f, _BLOCK), np.repeat(L, _BLOCK)
+    ok = i < ma
+    f, i, L = f[ok], i[ok], L[ok]
+    ok = _overlap(_segment_box(acoords, f, i), _take(blk, f, L))
+    f, i, L = f[ok], i[ok], L[ok]
+    j = (L[:, None] * _BLOCK + r).ravel()
+    f, i = np.repeat(f, _BLOCK), np.repeat(i, _BLOCK)
+    f, i, j = _segment_pairs(acoords, coords, f, i, j, ma, mb, False)
+    return f, i + 1, j
+
+
 def first_crossing_frames(positions, s_nodes, cap_params):
     """First frames where the rod crosses itself and where the interface crosses the rod.
 
@@ -174,61 +280,30 @@ def first_crossing_frames(positions, s_nodes, cap_params):
         Frame indices, -1 where there is no crossing. The interface is not tested on
         frame 0 (the release state, where it rests on the straight rod's chord).
     """
-    # the flags and bounds of the crossing tests are passed as np.bool_ / np.int64: a
-    # constant argument of a call from compiled code is typed as a literal, and numba
-    # compiles the callee once per literal value (here once for both tests)
-    n_frames = positions.shape[0]
-    n = positions.shape[1]
-    k_rod = -1
-    k_if = -1
-    grad = np.zeros((n, 2))
-    iface = np.empty((INTERFACE_POINTS, 2))
-    box = np.empty((n - 1, 4))
-    bbox = np.empty(((n - 1 + _BLOCK - 1) // _BLOCK, 4))
-    for k in range(n_frames):
-        if k_rod >= 0 and k_if >= 0:
-            break
-        pos = positions[k]
-        _segment_boxes(pos, box, bbox)
-        if k_rod < 0 and _any_crossing(pos, pos, np.bool_(True), np.int64(0), n, box,
-                                        bbox):
-            k_rod = k
-        if k_if < 0 and k > 0:
-            p = cap_params[k]
-            _interface_points(pos, s_nodes, p[0], p[1], p[2], p[3], grad, iface)
-            if _any_crossing(iface, pos, np.bool_(False), np.int64(1),
-                             np.int64(INTERFACE_POINTS - 2), box, bbox):
-                k_if = k
+    positions = np.ascontiguousarray(positions, dtype=np.float64)
+    s_nodes = np.ascontiguousarray(s_nodes, dtype=np.float64)
+    cap_params = np.asarray(cap_params, dtype=np.float64)
+    k_rod = k_if = -1
+    k0, size = 0, _FIRST_FRAMES
+    while k0 < positions.shape[0] and (k_rod < 0 or k_if < 0):
+        x = positions[k0:k0 + size]
+        if k_rod < 0:
+            hit = np.flatnonzero(_self_crossing(x))
+            if hit.size:
+                k_rod = k0 + int(hit[0])
+        if k_if < 0:
+            a = max(1 - k0, 0)  # frame 0 is not tested
+            iface = _interface_points(x[a:], s_nodes, cap_params[k0 + a:k0 + x.shape[0]])
+            f, i, j = _interface_pairs(x[a:], iface)
+            hit, _u = _cross(iface, x[a:], f, i, j)
+            if hit.any():
+                k_if = k0 + a + int(f[hit].min())
+        k0, size = k0 + x.shape[0], min(2 * size, FRAME_BLOCK)
     return k_rod, k_if
 
 
 #: Most crossings :func:`interface_crossings` lists on one frame.
 MAX_LISTED_CROSSINGS = 64
-
-
-@numba.njit(cache=True)
-def _interface_crossings(x, s_nodes, cap, out_s):
-    """Rod arclengths where the drawn interface crosses the rod (into ``out_s``); count."""
-    n = x.shape[0]
-    grad = np.zeros((n, 2))
-    iface = np.empty((INTERFACE_POINTS, 2))
-    box = np.empty((n - 1, 4))
-    bbox = np.empty(((n - 1 + _BLOCK - 1) // _BLOCK, 4))
-    pairs = np.empty((out_s.shape[0], 2), dtype=np.int64)
-    _segment_boxes(x, box, bbox)
-    _interface_points(x, s_nodes, cap[0], cap[1], cap[2], cap[3], grad, iface)
-    m = _crossing_pairs(iface, x, np.bool_(False), np.int64(1),
-                        np.int64(INTERFACE_POINTS - 2), box, bbox, pairs)
-    for k in range(m):
-        i, j = pairs[k, 0], pairs[k, 1]
-        ax, az = iface[i, 0], iface[i, 1]
-        rx, rz = iface[i + 1, 0] - ax, iface[i + 1, 1] - az
-        sx, sz = x[j + 1, 0] - x[j, 0], x[j + 1, 1] - x[j, 1]
-        qx, qz = x[j, 0] - ax, x[j, 1] - az
-        # the rod parameter of segments_cross's test (same arithmetic)
-        u = (qx * rz - qz * rx) / (rx * sz - rz * sx)
-        out_s[k] = s_nodes[j] + u * (s_nodes[j + 1] - s_nodes[j])
-    return m
 
 
 def interface_crossings(x, s_nodes, cap) -> np.ndarray:
@@ -247,13 +322,18 @@ def interface_crossings(x, s_nodes, cap) -> np.ndarray:
     Returns
     -------
     ndarray
-        Sorted arclengths (at most MAX_LISTED_CROSSINGS), empty when there is no crossing.
+        Sorted arclengths (at most MAX_LISTED_CROSSINGS: the first ones along the
+        interface), empty when there is no crossing.
     """
-    out = np.empty(MAX_LISTED_CROSSINGS)
-    m = _interface_crossings(np.ascontiguousarray(x, dtype=np.float64),
-                             np.ascontiguousarray(s_nodes, dtype=np.float64),
-                             np.asarray(cap, dtype=np.float64), out)
-    return np.sort(out[:m])
+    x = np.ascontiguousarray(x, dtype=np.float64)[None]
+    s_nodes = np.ascontiguousarray(s_nodes, dtype=np.float64)
+    iface = _interface_points(x, s_nodes, np.asarray(cap, dtype=np.float64)[None])
+    f, i, j = _interface_pairs(x, iface)
+    hit, u = _cross(iface, x, f, i, j)
+    i, j, u = i[hit], j[hit], u[hit]
+    first = np.lexsort((j, i))[:MAX_LISTED_CROSSINGS]
+    j, u = j[first], u[first]
+    return np.sort(s_nodes[j] + u * (s_nodes[j + 1] - s_nodes[j]))
 
 
 @dataclass(frozen=True)

@@ -765,17 +765,16 @@ def _stitch(keep, fired, runs, dt, last) -> SimulationResult:
         events_fired=sorted(fired, key=lambda e: e[0]))
 
 
-def _locate_first_touch(scene, st, rod, sim, options) -> list:
-    """Under "ignore": the first touch of a finished run (its time located by re-running
-    to the frame before the first crossing frame, then step by step, then bisection inside
-    the step), flagged; [] when the interface never crosses the rod."""
+def _locate_first_touch(scene, st, rod, sim, options, k_if) -> list:
+    """Under "ignore": the first touch of a finished run whose interface first crosses the
+    rod at frame ``k_if`` (its time located by re-running to the frame before, then step
+    by step, then bisection inside the step), flagged; [] when the interface never
+    crosses the rod (``k_if`` < 0)."""
+    if k_if < 0:
+        return []
     s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
     seg = _Segments(scene, st, sim.dt, None, options)
     params = seg.eff.capillary.params.copy()
-    caps = seg.cap_frames(sim, params)
-    _k, k_if = first_crossing_frames(sim.positions, s_nodes, caps)
-    if k_if < 0:
-        return []
     seg.frame_steps = np.rint(sim.times / sim.dt).astype(np.int64)
     loc = seg.locate(rod, 0, params, True, k_if, sim, s_nodes)
     touch = loc.touch
@@ -860,10 +859,15 @@ def run_impact(scene: Scene, frames: int | None = None, **options) -> ImpactResu
     best = min(done, key=lambda a: a.rise) if done else attempts[-1]
     st["dt"] = best.dt
     st["dt_retries"] = len(attempts) - 1
+    # the first crossings of the kept run, found once: the touch location and the
+    # classification both read them
+    s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
+    cap_frames = _contact_lines_per_frame(best.sim, best.effects, _wet_interval(scene))
+    crossings = first_crossing_frames(best.sim.positions, s_nodes, cap_frames)
     if scene.drop.interface_contact == "ignore":
-        best.touches = _locate_first_touch(scene, st, rod, best.sim, options)
+        best.touches = _locate_first_touch(scene, st, rod, best.sim, options, crossings[1])
     best.touches = [_plain_touch(t) for t in best.touches]
-    return _classify(scene, st, rod, best, attempts, scale, t0)
+    return _classify(scene, st, rod, best, attempts, scale, t0, cap_frames, crossings)
 
 
 def _plain_touch(t: dict) -> dict:
@@ -899,14 +903,15 @@ def touch_note(touches: list, scale: float, most: int = 3) -> str:
     return "The drop's interface touches the rod at " + "; ".join(shown) + "."
 
 
-def _classify(scene, st, rod, best, attempts, scale, t0) -> ImpactResult:
-    """Crossings, measures, the outcome (:func:`elastocap.criteria.impact_verdict`) and
-    the message of the kept attempt."""
+def _classify(scene, st, rod, best, attempts, scale, t0, cap_frames,
+              crossings) -> ImpactResult:
+    """Measures, the outcome (:func:`elastocap.criteria.impact_verdict`) and the message
+    of the kept attempt, whose capillary parameters per frame are ``cap_frames`` and
+    first crossing frames ``crossings`` (:func:`elastocap.crossings.first_crossing_frames`)."""
     sim, rise, t_rise = best.sim, best.rise, best.t_rise
     s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
     measures = turning_measures(sim.positions)
-    cap_frames = _contact_lines_per_frame(sim, best.effects, _wet_interval(scene))
-    k_rod, k_if = first_crossing_frames(sim.positions, s_nodes, cap_frames)
+    k_rod, k_if = crossings
     rod_t = float(sim.times[k_rod]) if k_rod >= 0 else None
     if_t = float(sim.times[k_if]) if k_if >= 0 else None
     final = sim.positions[-1]
