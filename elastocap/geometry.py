@@ -165,7 +165,8 @@ FRAME_BLOCK = 1024
 
 def turning_angles(positions: np.ndarray) -> np.ndarray:
     """Signed turning angles (radians) at the interior nodes of each frame: ``arctan2(e_i x
-    e_{i+1}, e_i . e_{i+1})`` of consecutive edges, shape (n_frames, n_nodes - 2).
+    e_{i+1}, e_i * e_{i+1})`` (cross and dot products) of consecutive edges, shape
+    (n_frames, n_nodes - 2).
 
     Parameters
     ----------
