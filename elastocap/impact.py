@@ -765,14 +765,13 @@ def _stitch(keep, fired, runs, dt, last) -> SimulationResult:
         events_fired=sorted(fired, key=lambda e: e[0]))
 
 
-def _locate_first_touch(scene, st, rod, sim, options, k_if) -> list:
+def _locate_first_touch(scene, st, rod, sim, options, k_if, s_nodes) -> list:
     """Under "ignore": the first touch of a finished run whose interface first crosses the
     rod at frame ``k_if`` (its time located by re-running to the frame before, then step
     by step, then bisection inside the step), flagged; [] when the interface never
     crosses the rod (``k_if`` < 0)."""
     if k_if < 0:
         return []
-    s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
     seg = _Segments(scene, st, sim.dt, None, options)
     params = seg.eff.capillary.params.copy()
     seg.frame_steps = np.rint(sim.times / sim.dt).astype(np.int64)
@@ -865,9 +864,10 @@ def run_impact(scene: Scene, frames: int | None = None, **options) -> ImpactResu
     cap_frames = _contact_lines_per_frame(best.sim, best.effects, _wet_interval(scene))
     crossings = first_crossing_frames(best.sim.positions, s_nodes, cap_frames)
     if scene.drop.interface_contact == "ignore":
-        best.touches = _locate_first_touch(scene, st, rod, best.sim, options, crossings[1])
+        best.touches = _locate_first_touch(scene, st, rod, best.sim, options, crossings[1],
+                                           s_nodes)
     best.touches = [_plain_touch(t) for t in best.touches]
-    return _classify(scene, st, rod, best, attempts, scale, t0, cap_frames, crossings)
+    return _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames, crossings)
 
 
 def _plain_touch(t: dict) -> dict:
@@ -903,13 +903,13 @@ def touch_note(touches: list, scale: float, most: int = 3) -> str:
     return "The drop's interface touches the rod at " + "; ".join(shown) + "."
 
 
-def _classify(scene, st, rod, best, attempts, scale, t0, cap_frames,
+def _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames,
               crossings) -> ImpactResult:
     """Measures, the outcome (:func:`elastocap.criteria.impact_verdict`) and the message
-    of the kept attempt, whose capillary parameters per frame are ``cap_frames`` and
-    first crossing frames ``crossings`` (:func:`elastocap.crossings.first_crossing_frames`)."""
+    of the kept attempt: nodes at arclengths ``s_nodes``, capillary parameters per frame
+    ``cap_frames``, first crossing frames ``crossings``
+    (:func:`elastocap.crossings.first_crossing_frames`)."""
     sim, rise, t_rise = best.sim, best.rise, best.t_rise
-    s_nodes = np.concatenate([[0.0], np.cumsum(rod.edge_len)])
     measures = turning_measures(sim.positions)
     k_rod, k_if = crossings
     rod_t = float(sim.times[k_rod]) if k_rod >= 0 else None

@@ -677,13 +677,9 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pa
     if strip.thickness > 0.0:
         # a constraint already violated at the start would keep the event function
         # negative all along, and no later event could fire
-        vals = values(v0, p0)
-        if float(np.min(vals)) < -_START_VIOLATION:
-            k = int(np.argmin(vals))
-            return prob, tools, _empty(
-                f"the segment at Delta = {p0:.12g} starts with event value {k} at "
-                f"{vals[k]:.3g} (a constraint violated): its events could not fire; try a "
-                "smaller ds0"), values
+        why = _violated_start(values, v0, p0, "; try a smaller ds0")
+        if why:
+            return prob, tools, _empty(why), values
     br = continue_branch(prob, v0, p0, st, events=events, stop_on=tuple(events),
                          tangent=tangent)
     if strip.thickness > 0.0 and len(br.p):
@@ -691,14 +687,22 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pa
         # self-contact events can start a hair inside a tube: measured at x = 3, n = 429,
         # a base node 2e-9 inside the tail's first free segment where the tail leaves
         # the base, which masked every later event of that segment)
-        vals = values(br.u[0], br.p[0])
-        if float(np.min(vals)) < -_START_VIOLATION:
-            k = int(np.argmin(vals))
-            return prob, tools, _empty(
-                f"the segment at Delta = {br.p[0]:.12g} starts with event value {k} at "
-                f"{vals[k]:.3g} (a constraint violated at two nearly simultaneous contact "
-                "events): its events could not fire"), values
+        why = _violated_start(values, br.u[0], br.p[0],
+                              " (at two nearly simultaneous contact events)")
+        if why:
+            return prob, tools, _empty(why), values
     return prob, tools, br, values
+
+
+def _violated_start(values, v, p, hint):
+    """Why a segment starting at ``(v, p)`` cannot trace (a constraint already violated
+    there keeps its event function negative, so no later event could fire), or ""."""
+    vals = values(v, p)
+    if float(np.min(vals)) >= -_START_VIOLATION:
+        return ""
+    k = int(np.argmin(vals))
+    return (f"the segment at Delta = {p:.12g} starts with event value {k} at {vals[k]:.3g} "
+            f"(a constraint violated): its events could not fire{hint}")
 
 
 def _collect(strip, active, prob, tools, br, values):
