@@ -4,9 +4,9 @@ The paper's model has no rod-rod contact and lets the drop's interface pass thro
 rod; :func:`first_crossing_frames` finds, on a sequence of frames, the first frame where
 the rod crosses itself and the first where the circular-cap interface crosses the rod.
 Per frame, the interface is drawn with ``INTERFACE_POINTS`` points from the cap
-half-angle of :func:`elastocap.drop.capillary_energy_and_gradient` (the same arc as
-:func:`elastocap.geometry.arc_points`), and the crossing test is that of
-:func:`elastocap.geometry.count_crossings` (touching end points do not count), run only on
+half-angle of :func:`elastocap.drop.capillary_energy_and_gradient` (the arc of
+:func:`elastocap.geometry.arc_offsets`), and the crossing test is
+:func:`elastocap.geometry.proper_crossing` (touching end points do not count), run only on
 the segment pairs whose bounding boxes overlap.
 
 Vectorised numpy over blocks of frames, not compiled: a compiled detector cost 2 s of
@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from elastocap.drop import capillary_energy_and_gradient
-from elastocap.geometry import FRAME_BLOCK, turning_angles
+from elastocap.drop import capillary_energy_and_gradient, locate_on_rod
+from elastocap.geometry import FRAME_BLOCK, arc_offsets, proper_crossing, turning_angles
 
 __all__ = [
     "INTERFACE_POINTS",
@@ -56,49 +56,32 @@ _BLOCK = 8
 _ANGLE_MARGIN = 1e-6
 
 
-def _locate(s, s_nodes):
-    """Edge index i and fraction w with s = (1-w) s_nodes[i] + w s_nodes[i+1]:
-    :func:`elastocap.drop.locate_on_rod` (clipped to the ends), for arrays of s."""
-    n = s_nodes.shape[0]
-    i = np.clip(np.searchsorted(s_nodes, s, side="right") - 1, 0, n - 2)
-    w = (s - s_nodes[i]) / (s_nodes[i + 1] - s_nodes[i])
-    w = np.where(s <= s_nodes[0], 0.0, np.where(s >= s_nodes[n - 1], 1.0, w))
-    return i, w
-
-
 def _interface_points(x, s_nodes, caps):
     """The drawn interfaces (F, INTERFACE_POINTS, 2) of frames x (F, n, 2) with capillary
-    parameters caps (F, 4) = [area, S1, S2, gamma] (the arithmetic of
-    :func:`elastocap.geometry.arc_points` with the samples -1 + 2 j / (k - 1))."""
+    parameters caps (F, 4) = [area, S1, S2, gamma] (:func:`elastocap.geometry.arc_offsets`
+    at the samples of :func:`elastocap.geometry.arc_points`)."""
     nf, n = x.shape[0], x.shape[1]
     tau = np.empty(nf)
     grad = np.zeros((n, 2))
+    ends = np.empty((2, nf, 2))
     for k in range(nf):
         # the cap half-angle (the compiled kernel the capillary force uses)
         tau[k] = capillary_energy_and_gradient(x[k], s_nodes, caps[k, 1], caps[k, 2],
                                                caps[k, 0], caps[k, 3], grad)[1]
-    f = np.arange(nf)
-    ends = []
-    for s in (caps[:, 1], caps[:, 2]):
-        i, w = _locate(s, s_nodes)
-        ends.append(((1.0 - w) * x[f, i, 0] + w * x[f, i + 1, 0],
-                     (1.0 - w) * x[f, i, 1] + w * x[f, i + 1, 1]))
-    (x1x, x1z), (x2x, x2z) = ends
+        for e in range(2):
+            i, w = locate_on_rod(caps[k, 1 + e], s_nodes)
+            ends[e, k] = (1.0 - w) * x[k, i] + w * x[k, i + 1]
+    (x1x, x1z), (x2x, x2z) = ends[0].T, ends[1].T
     cx = x2x - x1x
     cz = x2z - x1z
     d = np.sqrt(cx * cx + cz * cz)
     mx = 0.5 * (x1x + x2x)
     mz = 0.5 * (x1z + x2z)
     k = INTERFACE_POINTS
-    v = -1.0 + 2.0 * np.arange(k) / (k - 1)
+    along, across = arc_offsets(tau[:, None], np.linspace(-1.0, 1.0, k))
     with np.errstate(divide="ignore", invalid="ignore"):
         ux = (cx / d)[:, None]
         uz = (cz / d)[:, None]
-        t = tau[:, None]
-        st = np.sin(t)
-        flat = np.abs(t) < 1e-8
-        along = np.where(flat, v, np.sin(t * v) / st)
-        across = np.where(flat, 0.5 * t * (1.0 - v * v), (np.cos(t * v) - np.cos(t)) / st)
         hd = (0.5 * d)[:, None]
         out = np.empty((nf, k, 2))
         out[:, :, 0] = mx[:, None] + hd * (along * ux - across * uz)
@@ -168,22 +151,16 @@ def _expand(f, K, L):
 
 
 def _cross(a, b, f, i, j):
-    """Proper crossings of segment i of polylines a with segment j of b in frames f: the
-    test of :func:`elastocap.geometry.segments_cross` (same arithmetic), vectorised."""
+    """Proper crossings (hit, u) of segment i of polylines a with segment j of b in frames f
+    (:func:`elastocap.geometry.proper_crossing` on arrays)."""
     ka = 2 * (f * a.shape[1] + i)  # flat indices of (f, i, 0) and (f, j, 0)
     kb = 2 * (f * b.shape[1] + j)
     a, b = a.reshape(-1), b.reshape(-1)
     ax, az = a[ka], a[ka + 1]
-    rx, rz = a[ka + 2] - ax, a[ka + 3] - az
     bx, bz = b[kb], b[kb + 1]
-    sx, sz = b[kb + 2] - bx, b[kb + 3] - bz
-    den = rx * sz - rz * sx
-    qx, qz = bx - ax, bz - az
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = (qx * sz - qz * sx) / den
-        u = (qx * rz - qz * rx) / den
-    hit = (den != 0.0) & (1e-9 < t) & (t < 1.0 - 1e-9) & (1e-9 < u) & (u < 1.0 - 1e-9)
-    return hit, u
+        return proper_crossing(ax, az, a[ka + 2] - ax, a[ka + 3] - az,
+                               bx, bz, b[kb + 2] - bx, b[kb + 3] - bz)
 
 
 def _segment_pairs(acoords, bcoords, f, i, j, ma, mb, same):

@@ -22,10 +22,12 @@ import numba
 import numpy as np
 
 __all__ = [
+    "arc_offsets",
     "arc_points",
     "arclength",
     "count_crossings",
     "encapsulation_measure",
+    "proper_crossing",
     "segments_cross",
     "turning_angles",
     "turning_from",
@@ -42,11 +44,32 @@ def encapsulation_measure(theta_first: float, theta_last: float) -> float:
     return (theta_last - theta_first) / math.pi
 
 
+def arc_offsets(tau, v):
+    """The interface's arc in the frame of its chord: (along, across) at the samples v in
+    [-1, 1] of an arc of half-angle tau, both in units of the half-chord.
+
+    The point at v is mid + d/2 (along c + across n) with c the unit chord x1 -> x2, n = (-c_z,
+    c_x) and d the chord's length; v = -1 and 1 are the ends. Written without the radius so
+    that a flat interface (|tau| < 1e-8: the parabola of the leading order) needs no special
+    case. tau and v broadcast against each other (numpy arrays or floats), so one call draws
+    the arcs of many frames (``tau[:, None]``).
+    """
+    tau = np.asarray(tau, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        st = np.sin(tau)
+        flat = np.abs(tau) < 1e-8
+        along = np.where(flat, v, np.sin(tau * v) / st)
+        # cos(tau v) - cos(tau) as a product: the difference loses every digit for small tau
+        across = np.where(flat, 0.5 * tau * (1.0 - v * v),
+                          2.0 * np.sin(0.5 * tau * (1.0 + v)) * np.sin(0.5 * tau * (1.0 - v)) / st)
+    return along, across
+
+
 def arc_points(x1, x2, tau, n=_N_ARC_SAMPLES):
     """Points of the drop interface from x1 to x2, shape (n, 2).
 
-    The arc bulges to the left of x1 -> x2 (the +q side) for tau > 0, with half-angle tau.
-    Written without the radius so that a flat interface (tau -> 0) needs no special case.
+    The arc bulges to the left of x1 -> x2 (the +q side) for tau > 0, with half-angle tau
+    (:func:`arc_offsets`).
     """
     x1x, x1z = float(x1[0]), float(x1[1])
     x2x, x2z = float(x2[0]), float(x2[1])
@@ -59,14 +82,7 @@ def arc_points(x1, x2, tau, n=_N_ARC_SAMPLES):
         out[:, 1] = mz
         return out
     cx, cz = cx / d, cz / d
-    v = _unit_samples(n)
-    st = math.sin(tau)
-    if abs(tau) < 1e-8:
-        along = v
-        across = (0.5 * tau) * (1.0 - v * v)
-    else:
-        along = np.sin(tau * v) / st
-        across = (np.cos(tau * v) - math.cos(tau)) / st
+    along, across = arc_offsets(float(tau), _unit_samples(n))
     hd = 0.5 * d
     # mid + d/2 (along c + across nrm), nrm = (-c_z, c_x)
     out[:, 0] = mx + hd * (along * cx - across * cz)
@@ -115,19 +131,24 @@ def turning_from(x: np.ndarray, s_from: float, length: float) -> float:
     return float(np.sum(np.arctan2(cross, dot)) / math.pi)
 
 
-@numba.njit(cache=True)
-def segments_cross(ax, az, rx, rz, bx, bz, sx, sz):
-    """Do the segments a + t r and b + u s (0 < t, u < 1) cross properly?
+def proper_crossing(ax, az, rx, rz, bx, bz, sx, sz):
+    """Do the segments a + t r and b + u s cross properly (0 < t, u < 1)? Returns (hit, u).
 
-    Touching end points (t or u within 1e-9 of 0 or 1) and parallel segments do not count.
+    Touching end points (t or u within 1e-9 of 0 or 1) and parallel segments (den = 0) do
+    not count. Plain arithmetic on floats or on numpy arrays of segments (then call it under
+    ``np.errstate(divide="ignore", invalid="ignore")``); :func:`segments_cross` is this
+    function compiled.
     """
     den = rx * sz - rz * sx
-    if den == 0.0:
-        return False
     qx, qz = bx - ax, bz - az
     t = (qx * sz - qz * sx) / den
     u = (qx * rz - qz * rx) / den
-    return 1e-9 < t < 1.0 - 1e-9 and 1e-9 < u < 1.0 - 1e-9
+    hit = (den != 0.0) & (1e-9 < t) & (t < 1.0 - 1e-9) & (1e-9 < u) & (u < 1.0 - 1e-9)
+    return hit, u
+
+
+#: :func:`proper_crossing` compiled for scalars (division by zero gives inf, as in numpy).
+segments_cross = numba.njit(cache=True, error_model="numpy")(proper_crossing)
 
 
 @numba.njit(cache=True)
@@ -153,7 +174,7 @@ def count_crossings(a, b, same, skip_a0, skip_a1):
             if ((bx > x1 and cx > x1) or (bx < x0 and cx < x0)
                     or (bz > z1 and cz > z1) or (bz < z0 and cz < z0)):
                 continue
-            if segments_cross(ax, az, rx, rz, bx, bz, cx - bx, cz - bz):
+            if segments_cross(ax, az, rx, rz, bx, bz, cx - bx, cz - bz)[0]:
                 count += 1
     return count
 
