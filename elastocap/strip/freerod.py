@@ -3,11 +3,11 @@
 The free rod is the :class:`~elastocap.strip.model.DiscreteStrip` with ``ground = False``
 and q = 0 (:func:`~elastocap.strip.model.discrete_rod_for`): the same energy (bending,
 capillarity; term for term the dynamics'), the same node-segment self-contact pairs with a
-thickness, the same active-set Newton method (:func:`~elastocap.strip.solve.
-solve_equilibrium`) and the same tracer in Delta (:func:`~elastocap.strip.trace.
-trace_discrete_branch`). Its energy is invariant under translations and rotations: the
-gauge holds z_0 = 0 (x_0 = 0 is built in) and the angle of the edge holding the drop's
-centre at 0 (:attr:`~elastocap.strip.model.DiscreteStrip.gauge`).
+thickness, the same active-set Newton method
+(:func:`~elastocap.strip.solve.solve_equilibrium`) and the same tracer in Delta
+(:func:`~elastocap.strip.trace.trace_discrete_branch`). Its energy is invariant under
+translations and rotations: the gauge holds z_0 = 0 (x_0 = 0 is built in) and the angle of
+the edge holding the drop's centre at 0 (:attr:`~elastocap.strip.model.DiscreteStrip.gauge`).
 
 This module adds what the free rod needs around them: seeds from the spectral statics of
 the wet part (:mod:`elastocap.statics`, which knows no contact), carried to the edges
