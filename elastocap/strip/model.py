@@ -44,6 +44,12 @@ unknown, so one model covers every contact topology (the open state, the lifted 
 floppy encapsulated states, the saddles between them). The equilibria are solved in
 :mod:`elastocap.strip.solve`, traced in :mod:`elastocap.strip.trace`.
 
+Free rod (``ground = False``, q = F = 0; :func:`discrete_rod_for`, the ``supp-fig5`` scene):
+no ground constraint; the energy and the pair gaps are invariant under translations and
+rotations, so z_0 and the angle of the edge holding the drop's centre are held at 0
+(:attr:`DiscreteStrip.gauge`, :func:`fix_gauge`) and the solver and the tracer leave them
+out (:mod:`elastocap.strip.freerod`).
+
 Also here: the geometry and observables of a state (:func:`is_encapsulated`,
 :func:`strip_and_interface`, :func:`point_measures`) and the energy of the impact's release
 state (:func:`flat_energy`).
