@@ -44,6 +44,12 @@ unknown, so one model covers every contact topology (the open state, the lifted 
 floppy encapsulated states, the saddles between them). The equilibria are solved in
 :mod:`elastocap.strip.solve`, traced in :mod:`elastocap.strip.trace`.
 
+Free rod (``ground = False``, q = F = 0; :func:`discrete_rod_for`, the ``supp-fig5`` scene):
+no ground constraint; the energy and the pair gaps are invariant under translations and
+rotations, so z_0 and the angle of the edge holding the drop's centre are held at 0
+(:attr:`DiscreteStrip.gauge`, :func:`fix_gauge`) and the solver and the tracer leave them
+out (:mod:`elastocap.strip.freerod`).
+
 Also here: the geometry and observables of a state (:func:`is_encapsulated`,
 :func:`strip_and_interface`, :func:`point_measures`) and the energy of the impact's release
 state (:func:`flat_energy`).
@@ -72,7 +78,9 @@ __all__ = [
     "DiscreteStrip",
     "capillary_hessian_nodes",
     "closest_segments",
+    "discrete_rod_for",
     "discrete_strip_for",
+    "fix_gauge",
     "flat_energy",
     "flat_state",
     "is_encapsulated",
@@ -276,6 +284,11 @@ class DiscreteStrip:
     thickness : float
         The strip's thickness d (length, scene key ``rod.thickness``): node-segment
         self-contact (module docstring); 0 turns it off.
+    ground : bool
+        True: the ground z >= 0 holds every node. False: a free rod (no ground; q and F
+        must be 0), whose energy is invariant under translations and rotations: the
+        unknowns :attr:`gauge` (z_0 and the angle of the edge holding the drop's centre)
+        are held at 0 (:func:`fix_gauge`) and the solver and the tracer leave them out.
     """
 
     n: int
@@ -288,6 +301,7 @@ class DiscreteStrip:
     q: float = 1.0
     F: float = 0.0
     thickness: float = 0.0
+    ground: bool = True
 
     def __post_init__(self):
         if int(self.n) != self.n or self.n < 4:
@@ -300,6 +314,12 @@ class DiscreteStrip:
                 raise ValueError(
                     f"{name}: got {v!r}; expected a finite value {'>' if strict else '>='} {lo}"
                 )
+        if not self.ground:
+            for name in ("q", "F"):
+                if getattr(self, name) != 0.0:
+                    raise ValueError(
+                        f"{name}: got {getattr(self, name)!r}; expected 0 for a free rod "
+                        "(ground = False: no load may act on it but the drop)")
         if self.gamma > 0.0 and not (0.0 < self.s1 < self.s2 < self.L):
             raise ValueError(
                 f"drop: got S1 = {self.s1}, S2 = {self.s2} (x = {self.x_end}, Delta = "
@@ -329,6 +349,17 @@ class DiscreteStrip:
         """Arclength of each node, shape (n + 1,) (length); computed once per strip (the
         derivatives are evaluated ~1e5 times per trace)."""
         return np.linspace(0.0, self.L, self.n + 1)
+
+    @functools.cached_property
+    def gauge(self) -> np.ndarray:
+        """Indices in u held at 0 by the gauge: none on the ground; for a free rod z_0
+        (x_0 = 0 already fixes the other translation) and the angle of the edge holding
+        the drop's centre L - x (for odd n and a centred drop the middle edge, so that a
+        mirror-symmetric state is symmetric about the vertical through its midpoint)."""
+        if self.ground:
+            return np.zeros(0, dtype=np.int64)
+        k = min(int(math.floor((self.L - self.x_end) / self.h + 1e-9)), self.n - 1)
+        return np.array([0, 1 + k], dtype=np.int64)
 
     @property
     def tip(self) -> int:
@@ -494,6 +525,44 @@ def discrete_strip_for(scene, n=None) -> DiscreteStrip:
         scene.rod.mass_per_length * scene.effects.gravity,
         thickness=float(scene.rod.thickness or 0.0),
     )
+
+
+def discrete_rod_for(scene, n=None) -> DiscreteStrip:
+    """The discrete free rod of a scene without gravity and without the ground
+    (``supp-fig5``): a :class:`DiscreteStrip` with ``ground = False`` and q = 0.
+
+    ``n`` defaults to the scene's impact resolution, as in :func:`discrete_strip_for`; an
+    odd n puts the gauge edge's midpoint on a centred drop's centre.
+    """
+    if scene.effects.gravity != 0.0 or scene.effects.ground:
+        raise ValueError(
+            f"scene.effects: got gravity = {scene.effects.gravity}, ground = "
+            f"{scene.effects.ground}; the free-rod statics needs gravity = 0 and ground = "
+            "false (discrete_strip_for is the strip's)"
+        )
+    if n is None:
+        from elastocap.impact import edge_count
+
+        n = edge_count(scene)
+    d = scene.drop
+    return DiscreteStrip(
+        int(n), scene.rod.length, scene.distance_from_end, d.wetted_length, d.area,
+        d.line_tension, scene.rod.bending_modulus, 0.0,
+        thickness=float(scene.rod.thickness or 0.0), ground=False,
+    )
+
+
+def fix_gauge(strip: DiscreteStrip, u) -> np.ndarray:
+    """The state u moved rigidly into the strip's gauge (a copy): for a free rod rotated
+    so that the gauge edge's angle is 0, with z_0 = 0 (node 0 stays at the origin); on
+    the ground, u unchanged."""
+    u = np.array(u, dtype=float)
+    if strip.ground:
+        return u
+    k = int(strip.gauge[1])
+    u[1:] -= u[k]
+    u[0] = 0.0
+    return u
 
 
 def flat_state(strip: DiscreteStrip) -> np.ndarray:

@@ -34,6 +34,7 @@ from continuation import factorize
 from elastocap.strip.model import (
     DiscreteStrip,
     closest_segments,
+    fix_gauge,
     flat_state,
     pair_gaps,
     pair_hessian,
@@ -56,6 +57,7 @@ __all__ = [
     "solve_equilibrium",
     "stability",
     "unstable_mode",
+    "with_self_contact",
     "wrapped_state",
 ]
 
@@ -140,7 +142,8 @@ def _tangent_basis(strip, u, nodes) -> np.ndarray:
     k = np.flatnonzero(k) if k.dtype == bool else k.astype(np.int64)
     N = strip.size
     if not k.size:
-        return np.eye(N)
+        # a free rod (no ground contacts): the unknowns but the gauge's
+        return np.delete(np.eye(N), strip.gauge, axis=1)
     G = strip.constraint_jacobian(u, k)
     D = G.copy()
     D[1:] -= G[:-1]
@@ -258,7 +261,9 @@ def _update_pairs(strip, u_old, u, P, mu, cpd):
                 continue
             if w[i] < 0.0 or w[i] > 1.0:
                 k = j if w[i] < 0.0 else j + 1
-                if k != i:
+                # not the mirror of a held point pair (two tips against each other: the
+                # same gap twice, a singular KKT matrix)
+                if k != i and keep.get(int(k), (-1, -1))[:2] != (int(i), 0):
                     keep[int(i)] = (k, 0, 0.0)
                 continue
             if redundant_pair(u, i, j, keep):
@@ -307,12 +312,16 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
         >= 0 and every node on or above the ground (to ``tol``); with a thickness, also
         every pair force >= 0 and every tested node-segment distance >= d (to ``tol``).
     """
-    u = np.array(u0, dtype=float)
+    u = fix_gauge(strip, u0)
     N = strip.size
     free = np.ones(N, dtype=bool)
+    free[strip.gauge] = False  # a free rod: z_0 and one angle held (translation, rotation)
     z = strip.heights(u)
     act = (z <= 1e-12) if active is None else np.array(active, dtype=bool)
     can = np.ones(N, dtype=bool)
+    if not strip.ground:
+        act[:] = False
+        can[:] = False
     r = np.zeros(N)
     seen = {}
     # PDAS weight: a node displaced by dz meets a bending force ~ B dz / h^3
@@ -377,7 +386,8 @@ def solve_equilibrium(strip: DiscreteStrip, u0, active=None, tol=1e-10,
         if npr:
             mu_new = mu - sol[nf + na:]
             stat[fi] -= Gp.T @ mu_new
-        res = max(float(np.max(np.abs(stat[fi]))), zscale * float(max(0.0, -np.min(z))),
+        res = max(float(np.max(np.abs(stat[fi]))),
+                  zscale * float(max(0.0, -np.min(z))) if strip.ground else 0.0,
                   zscale * float(np.max(np.abs(z[A]))) if na else 0.0)
         if sc:
             # every tested node at least d from its closest segment, the held pairs at d
@@ -462,8 +472,17 @@ def stability(strip: DiscreteStrip, eq: Equilibrium) -> tuple[int, int]:
 
 
 def _penalty(strip, u, k):
-    """Energy plus (k/2) sum min(z, 0)^2, its gradient and Hessian (the descent phase)."""
+    """Energy plus (k/2) sum min(z, 0)^2, its gradient and Hessian (the descent phase);
+    a free rod: the energy, its gradient and Hessian with the gauge's rows and columns
+    zero but a unit diagonal (so that the descent does not move them)."""
     E, g, H = strip.derivatives(u)
+    if not strip.ground:
+        gi = strip.gauge
+        g[gi] = 0.0
+        H[gi, :] = 0.0
+        H[:, gi] = 0.0
+        H[gi, gi] = 1.0
+        return E, g, H
     z = strip.heights(u)
     pen = np.minimum(z, 0.0)
     neg = np.flatnonzero(pen < 0.0)
@@ -534,7 +553,7 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
         # descent without self-contact (its penalty knows the ground only), then contact
         return _with_self_contact(strip, minimize_energy(strip.with_(thickness=0.0), u0, tol,
                                                          max_iter), tol)
-    u = np.array(u0, dtype=float)
+    u = fix_gauge(strip, u0)
     # 10 B / h^3: the penetration r / k is ~1e-5 (r ~ q h), close enough for the polish to
     # start on the right contact set; measured at n = 100, x = 4, Delta = 1.1: 57 trust
     # iterations against 461 with 1e3 B / h^3, same polished state
@@ -601,6 +620,14 @@ def contact_pairs_of(strip: DiscreteStrip, u) -> np.ndarray:
             side = e[0]
         held[int(i)] = (j, 1 if side >= 0.0 else -1)
     return np.array([(i, *held[i]) for i in sorted(held)], dtype=np.int64).reshape(-1, 3)
+
+
+def with_self_contact(strip: DiscreteStrip, eq: Equilibrium, tol=1e-10) -> Equilibrium:
+    """An equilibrium without self-contact (``eq``, e.g. of ``strip.with_(thickness=0)``)
+    made one of ``strip`` with its thickness: pairs for the nodes inside another part's
+    tube (:func:`contact_pairs_of`), then continuation in the thickness (d / 64, d / 16,
+    2 d / 16, ..., d), each step by the active-set Newton method."""
+    return _with_self_contact(strip, eq, tol)
 
 
 def _with_self_contact(strip, eq, tol):

@@ -461,6 +461,12 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
             return np.concatenate([u, np.asarray(r)[A] / rs])
         return np.concatenate([u, np.asarray(r)[A] / rs, np.asarray(mu) / rs])
 
+    # a free rod: the stationarity rows of the gauge unknowns (z_0 and one angle), which
+    # hold identically at any solution of the others (the energy and the gaps are
+    # invariant under translations and rotations), are replaced by cg u_k = 0
+    gauge = strip.gauge
+    cg = strip.B / strip.h
+
     def residual(v, p):
         s = cache.at(p)
         if s is None:
@@ -473,9 +479,12 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
         z = zs[A]
         z[1:] -= zs[A[:-1]]
         if not npr:
-            return np.concatenate([g - s.reaction_forces(u, r), c * z])
+            stat = g - s.reaction_forces(u, r)
+            stat[gauge] = cg * u[gauge]
+            return np.concatenate([stat, c * z])
         gp, _w = pair_gaps(s, u, P)
         stat = g - s.reaction_forces(u, r) - pair_jacobian(s, u, P).T @ mu_of(v)
+        stat[gauge] = cg * u[gauge]
         return np.concatenate([stat, c * z, c * gp])
 
     def lagrangian_hessian(v, p):
@@ -501,6 +510,9 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
             Gp = pair_jacobian(s, u, P)
             J[:N, N + na:] = -rs * Gp.T
             J[N + na:, :N] = c * Gp
+        if gauge.size:
+            J[gauge, :] = 0.0
+            J[gauge, gauge] = cg
         return J
 
     c0, h = strip.L - strip.x_end, strip.h
@@ -532,6 +544,8 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
         D[1:] -= G[:-1]
         if npr:
             D = np.vstack([D, pair_jacobian(cache.at(p), v[:N], P)])
+        if gauge.size:  # the gauge unknowns are held: rows with one nonzero
+            D = np.vstack([D, np.eye(N)[gauge]])
         return D
 
     def observables(v, p):
@@ -544,7 +558,8 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
 
     prob = FunctionProblem(residual, jacobian=jacobian, dfdp=dfdp,
                            hessian=lagrangian_hessian,
-                           constraint_jacobian=constraint_jacobian if na or npr else None,
+                           constraint_jacobian=constraint_jacobian
+                           if na or npr or gauge.size else None,
                            observables=observables, name=f"discrete strip, |A| = {na}" +
                            (f", |P| = {npr}" if npr else ""))
     return prob, {"split": split, "join": join, "mu": mu_of, "A": A, "P": P, "c": c,
@@ -595,7 +610,8 @@ def _event_function(strip, tools, guard, v0, p0):
         z = st.heights(u)
         val = np.full(N + 1 + (2 * npr + 1 if sc else 0), np.inf)
         val[A] = r[A] / scale
-        val[free_nodes] = c * z[free_nodes] / scale
+        if st.ground:
+            val[free_nodes] = c * z[free_nodes] / scale
         # last entry: the contact lines closing around the drop (ends the branch)
         stop = CHORD_STOP * st.delta
         val[N] = (st.chord(u) - stop) / stop
