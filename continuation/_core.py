@@ -559,13 +559,15 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
         for sp_ in run.sps:
             if sp_.kind == "event" and sp_.index == k and sp_.name in stop_on:
                 stop = sp_
-        if bound is not None:
-            run.status = B.PARAMETER_BOUND
-            run.message = f"reached the parameter bound p={bound!r}."
-            return run
+        # a terminal event on the step that was cut back onto a bound lies before the bound
+        # along the step: it ends the run, so that a caller restarting at events sees it
         if stop is not None:
             run.status = B.STOPPED
             run.message = f"terminal event {stop.name!r} at p={stop.p:.12g}."
+            return run
+        if bound is not None:
+            run.status = B.PARAMETER_BOUND
+            run.message = f"reached the parameter bound p={bound!r}."
             return run
         if callback is not None:
             info = {"step": step, "p": x_new[n], "u": x_new[:n], "ds": ds,
@@ -1023,7 +1025,8 @@ def continue_branch(
         User functions ``g(u, p) -> float``; a sign change between two points
         is located and recorded as a special point of kind ``"event"``.
     stop_on : collection of str
-        Names of events that end the run (status ``STOPPED``).
+        Names of events that end the run (status ``STOPPED``), also on the step cut back
+        onto ``p_min`` or ``p_max`` (the event lies before the bound).
     callback : callable, optional
         Called after each accepted step with a dict (``step, p, u, ds,
         newton_iterations, stability``); returning ``False`` stops the run.

@@ -32,6 +32,29 @@ def test_event_located_and_terminal_event_stops():
     assert "umax_is_one" in b2.message
 
 
+def test_terminal_event_on_the_step_cut_back_onto_the_bound_stops_the_run():
+    # the step that crosses the event also overshoots p_max: it is cut back onto the bound,
+    # and the event, between its start and the bound, still ends the run as terminal
+    prob = Bratu(16, "fd")
+
+    def umax_is_one(u, p):
+        return float(np.max(u)) - 1.0
+
+    free = C.continue_branch(prob, np.zeros(15), 0.0, S, events=[umax_is_one],
+                             stop_on=["umax_is_one"])
+    ev = free.points("event")[0]
+    p_end = free.p[ev.index]  # the end of the step that crosses the event
+    assert free.p[ev.index - 1] < ev.p < p_end
+    p_max = 0.5 * (ev.p + p_end)
+    br = C.continue_branch(prob, np.zeros(15), 0.0, S.replace(p_max=p_max),
+                           events=[umax_is_one], stop_on=["umax_is_one"])
+    assert br.p[-1] == p_max  # the step was cut back onto the bound
+    assert br.status == C.STOPPED and "umax_is_one" in br.message
+    e2 = br.points("event")
+    assert len(e2) == 1 and e2[0].index == len(br) - 1
+    assert abs(e2[0].p - ev.p) < 1e-9 and abs(np.max(e2[0].u) - 1.0) < 1e-10
+
+
 def test_bound_is_hit_exactly_and_callback_can_stop():
     prob = Bratu(16)
     br = C.continue_branch(prob, np.zeros(15), 0.0, S.replace(p_max=2.0))

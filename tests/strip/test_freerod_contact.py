@@ -129,6 +129,21 @@ def test_tips_touch_where_the_spectral_tips_are_d_apart(traced51):
     assert 0.0 < on["delta"] - ref < 3e-3, (on, ref)
 
 
+def test_onset_on_the_last_step_before_the_range_end_is_found(traced51):
+    """A range ending just above the onset (3.1703, n = 51): the step that crosses the
+    onset is cut back onto the range's end, and the onset is still located, at the same
+    Delta as on the longer trace."""
+    rod, br = traced51
+    full = contact_summary(rod, br)["onset"]
+    sc = _scene()
+    short = trace_discrete_branch(rod, encapsulated_state(sc, 51), (3.15, full["delta"] + 1e-3),
+                                  ContinuationSettings(**DEFAULTS), restart=True,
+                                  max_segments=20)
+    on = contact_summary(rod, short)["onset"]
+    assert on is not None and on["pair"] == full["pair"]
+    assert abs(on["delta"] - full["delta"]) < 1e-10
+
+
 def test_tip_force_balances_the_tails_bending_moment(traced51):
     """Closed form: with the tips pressed together (one point pair, force mu) the dry tail
     [0, S1] carries only mu at its tip, so the bending moment at each of its nodes k,
