@@ -30,14 +30,20 @@ def test_arc_points_lie_on_the_circle_of_half_angle_tau(tau, a, b, c, phi):
 
 
 def test_arc_offsets_keep_their_digits_for_nearly_flat_arcs():
-    # across = (cos(tau v) - cos(tau)) / sin(tau) = tau (1 - v^2) / 2 (1 + O(tau^2)): on
-    # both sides of the flat switch and through the range where the difference of cosines
-    # loses its digits (it is 0 in floating point at tau = 1e-8)
+    # the series of along = sin(tau v) / sin(tau) and across = (cos(tau v) - cos(tau)) /
+    # sin(tau) to relative O(tau^4): v (1 + tau^2 (1 - v^2) / 6) and tau (1 - v^2) / 2
+    # (1 + tau^2 (1 - v^2) / 12); on both sides of the flat switch (1e-8) and through the
+    # range where the difference of cosines loses its digits (0 in floating point at 1e-8,
+    # 1e-4 relative at 1e-6)
     v = np.linspace(-1.0, 1.0, 9)
-    for tau in (1e-8 * (1 - 1e-6), 1e-8 * (1 + 1e-6), 1e-6, 1e-4):
+    for tau in (1e-8 * (1 - 1e-6), 1e-8 * (1 + 1e-6), 1e-7, 1e-6, 1e-5, 1e-4, 1e-3):
         along, across = arc_offsets(tau, v)
-        assert np.allclose(along, v, rtol=0, atol=tau * tau)
-        assert np.allclose(across, 0.5 * tau * (1.0 - v * v), rtol=tau * tau, atol=0)
+        t2 = tau * tau
+        ref_along = v * (1.0 + t2 * (1.0 - v * v) / 6.0)
+        ref_across = 0.5 * tau * (1.0 - v * v) * (1.0 + t2 * (1.0 - v * v) / 12.0)
+        tol = 4e-16 + t2 * t2
+        assert np.allclose(along, ref_along, rtol=tol, atol=0), tau
+        assert np.allclose(across, ref_across, rtol=tol, atol=0), tau
 
 
 def test_arc_offsets_broadcast_over_frames_as_arc_points_draws_one():

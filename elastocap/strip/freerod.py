@@ -1,7 +1,7 @@
 """The free rod (``supp-fig5``: no gravity, no ground) as a discrete strip with self-contact.
 
 The free rod is the :class:`~elastocap.strip.model.DiscreteStrip` with ``ground = False``
-and q = 0 (:func:`~elastocap.strip.model.discrete_rod_for`): the same energy (bending,
+and q = 0 (:func:`~elastocap.strip.model.discrete_strip_for`): the same energy (bending,
 capillarity; term for term the dynamics'), the same node-segment self-contact pairs with a
 thickness, the same active-set Newton method
 (:func:`~elastocap.strip.solve.solve_equilibrium`) and the same tracer in Delta
@@ -21,14 +21,14 @@ import math
 
 import numpy as np
 
-from elastocap.strip.model import DiscreteStrip, discrete_rod_for, fix_gauge
+from elastocap.geometry import encapsulation_measure
+from elastocap.strip.model import DiscreteStrip, discrete_strip_for, fix_gauge
 from elastocap.strip.solve import Equilibrium, minimize_energy
 
 __all__ = [
     "contact_summary",
     "discrete_from_wet",
     "encapsulated_state",
-    "measure",
     "wet_equilibrium",
 ]
 
@@ -82,15 +82,10 @@ def encapsulated_state(scene, n: int, turning: float = 1.5) -> Equilibrium:
     With a thickness the descent runs without self-contact and its minimum is made a
     contact equilibrium by continuation in the thickness (as for the strip).
     """
-    rod = discrete_rod_for(scene, n)
+    rod = discrete_strip_for(scene, n)
     s = (np.arange(rod.n) + 0.5) * rod.h
     th = math.pi * float(turning) * (np.clip((s - rod.s1) / rod.delta, 0.0, 1.0) - 0.5)
     return minimize_energy(rod, fix_gauge(rod, np.concatenate([[0.0], th])))
-
-
-def measure(u) -> float:
-    """The encapsulation measure M = (theta(L) - theta(0)) / pi of a state u."""
-    return float((u[-1] - u[1]) / math.pi)
 
 
 def contact_summary(rod: DiscreteStrip, branch) -> dict:
@@ -121,7 +116,7 @@ def contact_summary(rod: DiscreteStrip, branch) -> dict:
     for seg in branch.segments:
         for k, d in enumerate(seg.delta):
             pts.append({"delta": float(d), "index": int(seg.index_strong[k]),
-                        "energy": float(seg.energy[k]), "measure": measure(seg.u[k]),
+                        "energy": float(seg.energy[k]), "measure": encapsulation_measure(seg.u[k][1], seg.u[k][-1]),
                         "pairs": seg.pairs.tolist(),
                         "forces": seg.pair_forces[k].tolist() if seg.pair_forces.size else []})
         for k in range(1, seg.delta.size):

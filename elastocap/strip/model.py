@@ -44,7 +44,7 @@ unknown, so one model covers every contact topology (the open state, the lifted 
 floppy encapsulated states, the saddles between them). The equilibria are solved in
 :mod:`elastocap.strip.solve`, traced in :mod:`elastocap.strip.trace`.
 
-Free rod (``ground = False``, q = F = 0; :func:`discrete_rod_for`, the ``supp-fig5`` scene):
+Free rod (``ground = False``, q = F = 0; :func:`discrete_strip_for` of the ``supp-fig5`` scene):
 no ground constraint; the energy and the pair gaps are invariant under translations and
 rotations, so z_0 and the angle of the edge holding the drop's centre are held at 0
 (:attr:`DiscreteStrip.gauge`, :func:`fix_gauge`) and the solver and the tracer leave them
@@ -78,7 +78,6 @@ __all__ = [
     "DiscreteStrip",
     "capillary_hessian_nodes",
     "closest_segments",
-    "discrete_rod_for",
     "discrete_strip_for",
     "fix_gauge",
     "flat_energy",
@@ -502,17 +501,21 @@ class DiscreteStrip:
 
 
 def discrete_strip_for(scene, n=None) -> DiscreteStrip:
-    """The discrete strip of a scene with gravity and the ground (``fig3-strip``).
+    """The discrete model of a scene: the strip on the ground with gravity (``fig3-strip``)
+    or the free rod without either (``supp-fig5``: ``ground = False``, q = 0).
 
     ``n`` defaults to the scene's impact resolution (``numerics.n_edges``, or the accuracy
     preset's edges when it is 0, as :func:`elastocap.impact.edge_count` resolves it; the
     impact's own checks of the wet interval at the scene's Delta do not apply to statics, which
-    trace across Delta).
+    trace across Delta). For a centred drop on the free rod an odd n puts the gauge edge's
+    midpoint on the drop's centre.
     """
-    if not (scene.effects.gravity > 0.0 and scene.effects.ground):
+    g, ground = scene.effects.gravity, scene.effects.ground
+    if not ((g > 0.0 and ground) or (g == 0.0 and not ground)):
         raise ValueError(
-            f"scene.effects: got gravity = {scene.effects.gravity}, ground = "
-            f"{scene.effects.ground}; the strip statics needs gravity > 0 and ground = true"
+            f"scene.effects: got gravity = {g}, ground = {ground}; the discrete statics needs "
+            "gravity > 0 with ground = true (the strip) or gravity = 0 with ground = false "
+            "(the free rod)"
         )
     if n is None:
         from elastocap.impact import edge_count
@@ -521,34 +524,8 @@ def discrete_strip_for(scene, n=None) -> DiscreteStrip:
     d = scene.drop
     return DiscreteStrip(
         int(n), scene.rod.length, scene.distance_from_end, d.wetted_length, d.area,
-        d.line_tension, scene.rod.bending_modulus,
-        scene.rod.mass_per_length * scene.effects.gravity,
-        thickness=float(scene.rod.thickness or 0.0),
-    )
-
-
-def discrete_rod_for(scene, n=None) -> DiscreteStrip:
-    """The discrete free rod of a scene without gravity and without the ground
-    (``supp-fig5``): a :class:`DiscreteStrip` with ``ground = False`` and q = 0.
-
-    ``n`` defaults to the scene's impact resolution, as in :func:`discrete_strip_for`; an
-    odd n puts the gauge edge's midpoint on a centred drop's centre.
-    """
-    if scene.effects.gravity != 0.0 or scene.effects.ground:
-        raise ValueError(
-            f"scene.effects: got gravity = {scene.effects.gravity}, ground = "
-            f"{scene.effects.ground}; the free-rod statics needs gravity = 0 and ground = "
-            "false (discrete_strip_for is the strip's)"
-        )
-    if n is None:
-        from elastocap.impact import edge_count
-
-        n = edge_count(scene)
-    d = scene.drop
-    return DiscreteStrip(
-        int(n), scene.rod.length, scene.distance_from_end, d.wetted_length, d.area,
-        d.line_tension, scene.rod.bending_modulus, 0.0,
-        thickness=float(scene.rod.thickness or 0.0), ground=False,
+        d.line_tension, scene.rod.bending_modulus, scene.rod.mass_per_length * g,
+        thickness=float(scene.rod.thickness or 0.0), ground=bool(ground),
     )
 
 

@@ -551,7 +551,7 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
     """
     if strip.thickness > 0.0:
         # descent without self-contact (its penalty knows the ground only), then contact
-        return _with_self_contact(strip, minimize_energy(strip.with_(thickness=0.0), u0, tol,
+        return with_self_contact(strip, minimize_energy(strip.with_(thickness=0.0), u0, tol,
                                                          max_iter), tol)
     u = fix_gauge(strip, u0)
     # 10 B / h^3: the penetration r / k is ~1e-5 (r ~ q h), close enough for the polish to
@@ -624,17 +624,10 @@ def contact_pairs_of(strip: DiscreteStrip, u) -> np.ndarray:
 
 def with_self_contact(strip: DiscreteStrip, eq: Equilibrium, tol=1e-10) -> Equilibrium:
     """An equilibrium without self-contact (``eq``, e.g. of ``strip.with_(thickness=0)``)
-    made one of ``strip`` with its thickness: pairs for the nodes inside another part's
-    tube (:func:`contact_pairs_of`), then continuation in the thickness (d / 64, d / 16,
+    made one of ``strip`` with its thickness: the nodes in another part's tube get pairs
+    (:func:`contact_pairs_of`) and leave the ground (a tail node resting on the base rests
+    on it, not on the ground), then continuation in the thickness (d / 64, d / 16,
     2 d / 16, ..., d), each step by the active-set Newton method."""
-    return _with_self_contact(strip, eq, tol)
-
-
-def _with_self_contact(strip, eq, tol):
-    """A state of the strip without contact (``eq``) made an equilibrium with contact: the
-    nodes in another part's tube get pairs (:func:`contact_pairs_of`) and leave the ground
-    (a tail node resting on the base rests on it, not on the ground), then the active-set
-    Newton method."""
     if not eq.success:
         return eq
     # continuation in the thickness: d / 64, then d / 16, 2 d / 16, ..., d. The state

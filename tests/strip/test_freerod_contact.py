@@ -17,6 +17,7 @@ import pytest
 from scipy.optimize import brentq
 
 from continuation import ContinuationSettings
+from elastocap.geometry import encapsulation_measure
 from elastocap.scene import load_scene
 from elastocap.statics.branches import newton
 from elastocap.statics.shape import full_shape, measures
@@ -24,10 +25,9 @@ from elastocap.strip.freerod import (
     contact_summary,
     discrete_from_wet,
     encapsulated_state,
-    measure,
     wet_equilibrium,
 )
-from elastocap.strip.model import DiscreteStrip, discrete_rod_for, fix_gauge
+from elastocap.strip.model import DiscreteStrip, discrete_strip_for, fix_gauge
 from elastocap.strip.solve import solve_equilibrium, unstable_mode
 from elastocap.strip.trace import DEFAULTS, trace_discrete_branch
 
@@ -47,9 +47,10 @@ def _order(e):
 def test_free_rod_parameters_and_gauge():
     with pytest.raises(ValueError, match="q: got 1.0; expected 0 for a free rod"):
         DiscreteStrip(21, 4.6, 2.3, 3.0, 1.0, 1.0, ground=False)
-    with pytest.raises(ValueError, match="gravity = 0 and ground = false"):
-        discrete_rod_for(load_scene("fig3-strip"), 21)
-    rod = discrete_rod_for(_scene(), 21)
+    for mixed in ({"effects.ground": True}, {"effects.gravity": 1.0}):
+        with pytest.raises(ValueError, match="gravity = 0 with ground = false"):
+            discrete_strip_for(load_scene("supp-fig5", mixed), 21)
+    rod = discrete_strip_for(_scene(), 21)
     assert rod.q == 0.0 and not rod.ground
     assert rod.gauge.tolist() == [0, 11]  # z_0 and the middle edge (centre of the drop)
     u = np.random.default_rng(1).normal(size=rod.size)
@@ -74,7 +75,7 @@ def test_free_rod_matches_the_spectral_statics_at_second_order():
     assert abs(ms["measure"] - 1.2301) < 1e-4 and ms["admissible"] == 1.0
     de, dc = [], []
     for n in (41, 81, 161):
-        rod = discrete_rod_for(sc, n)
+        rod = discrete_strip_for(sc, n)
         eq = solve_equilibrium(rod, discrete_from_wet(rod, prob, us))
         assert eq.success and eq.index == 0, eq.message
         de.append(eq.energy - ms["energy"])
@@ -108,7 +109,7 @@ def traced51():
     """A = 1, n = 51, d = 0.05: the stable encapsulated state at Delta = 3.15 traced up to
     3.3 through the tips' contact onset."""
     sc = _scene()
-    rod = discrete_rod_for(sc, 51)
+    rod = discrete_strip_for(sc, 51)
     eq = encapsulated_state(sc, 51)
     assert eq.success and eq.index == 0 and not len(eq.pairs)
     br = trace_discrete_branch(rod, eq, (3.15, 3.3), ContinuationSettings(**DEFAULTS),
@@ -203,7 +204,7 @@ def test_contact_onset_converges_to_the_spectral_onset():
     err = []
     for n in (101, 201, 401):
         sc = _scene()
-        rod = discrete_rod_for(sc, n)
+        rod = discrete_strip_for(sc, n)
         br = trace_discrete_branch(rod, encapsulated_state(sc, n), (3.15, 3.2),
                                    ContinuationSettings(**DEFAULTS), restart=True,
                                    max_segments=50)
@@ -230,7 +231,7 @@ def test_damped_run_rests_on_the_tip_contact():
 
     n, delta = 101, 4.5
     sc = _scene(1.5, 4.0)
-    rod = discrete_rod_for(sc, n)
+    rod = discrete_strip_for(sc, n)
     br = trace_discrete_branch(rod, encapsulated_state(sc, n), (4.0, delta),
                                ContinuationSettings(**DEFAULTS), restart=True, max_segments=50)
     S = contact_summary(rod, br)
@@ -250,7 +251,7 @@ def test_damped_run_rests_on_the_tip_contact():
     gap = float(np.max(np.abs(st.positions(ud) - st.positions(u))))
     bound = 0.5 * math.sqrt(delta * REST_K)
     assert gap < bound, (gap, bound)
-    assert abs(measure(ud) - measure(u)) < bound
+    assert abs(encapsulation_measure(ud[1], ud[-1]) - encapsulation_measure(u[1], u[-1])) < bound
     f = res.simulation.contact_forces
     held = np.flatnonzero(np.any(f != 0.0, axis=1))
     assert held.tolist() == [0, n]

@@ -257,8 +257,8 @@ def test_invalid_input_named():
         DiscreteStrip(2, L, 2.0, 1.1, 0.36, 40.0)
     with pytest.raises(ValueError, match="expected 0 < S1 < S2 < L"):
         DiscreteStrip(50, L, 0.3, 1.1, 0.36, 40.0)
-    sc = load_scene("supp-fig5")
-    with pytest.raises(ValueError, match="gravity > 0 and ground = true"):
+    sc = load_scene("fig3-strip", {"effects.ground": False})
+    with pytest.raises(ValueError, match="gravity > 0 with ground = true"):
         discrete_strip_for(sc, 50)
 
 
