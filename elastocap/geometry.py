@@ -49,9 +49,11 @@ def arc_offsets(tau, v):
     [-1, 1] of an arc of half-angle tau, both in units of the half-chord.
 
     The point at v is mid + d/2 (along c + across n) with c the unit chord x1 -> x2, n = (-c_z,
-    c_x) and d the chord's length; v = -1 and 1 are the ends. Written without the radius so
-    that a flat interface (|tau| < 1e-8: the parabola of the leading order) needs no special
-    case. tau and v broadcast against each other (numpy arrays or floats), so one call draws
+    c_x) and d the chord's length; v = -1 and 1 are the ends. Written without the radius,
+    and the offset across as the product 2 sin(tau (1 + v) / 2) sin(tau (1 - v) / 2) /
+    sin(tau) (the difference of cosines loses its digits as tau -> 0), so that a nearly flat
+    interface keeps its digits; |tau| < 1e-8 takes the leading order (the parabola, exact
+    to O(tau^2) relative). tau and v broadcast against each other (numpy arrays or floats), so one call draws
     the arcs of many frames (``tau[:, None]``).
     """
     tau = np.asarray(tau, dtype=np.float64)
