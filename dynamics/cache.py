@@ -30,6 +30,13 @@ Bounds
     (modules plus numba's cache files beside them), never a module loaded by this process.
     ``elastocap cache clear`` (:func:`clear`) removes them all; ``elastocap cache info``
     (:func:`info`) reports the location, the count, the size and the limits.
+One compile per stepper
+    Processes that start together (a sweep's workers, a test run's workers) would each
+    compile the same stepper.  :func:`compile_lock` holds an exclusive lock per module
+    (``<module>.lock`` beside it, POSIX ``fcntl.flock``, released by the kernel when the
+    holder dies) while one process compiles; the others wait, then load numba's cached
+    code.  Where ``fcntl`` is missing, or after :data:`COMPILE_LOCK_TIMEOUT` seconds,
+    a process compiles without the lock.
 numba's own files
     numba writes the compiled code of a generated module where its cache setting says:
     under ``$NUMBA_CACHE_DIR`` when the user sets it, else in ``__pycache__`` beside the
@@ -38,6 +45,7 @@ numba's own files
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import stat
@@ -56,6 +64,7 @@ __all__ = [
     "MAX_BYTES",
     "cache_dir",
     "clear",
+    "compile_lock",
     "dependency_digest",
     "evict",
     "info",
@@ -76,6 +85,9 @@ MAX_BYTES = 256 * 2**20
 #: Hex digits of the content hash in a module's name (80 bits: collisions are not a
 #: concern, the check against the full file is exact for the digits kept).
 DIGEST_CHARS = 20
+#: Seconds a process waits for another one compiling the same stepper before it compiles
+#: it too (the longest compile measured is about 30 s of CPU on a loaded machine).
+COMPILE_LOCK_TIMEOUT = 600.0
 #: Every file this module writes starts with this prefix.
 PREFIX = "_dynamics_"
 
@@ -298,6 +310,57 @@ def is_compiled(module, functions) -> bool:
     return all(f in have for f in functions)
 
 
+@contextlib.contextmanager
+def compile_lock(module, on_wait=None, timeout: float = COMPILE_LOCK_TIMEOUT):
+    """Hold the compile lock of a generated ``module`` for the ``with`` block.
+
+    Parameters
+    ----------
+    module : module
+        A module returned by :func:`load_module`.
+    on_wait : callable, optional
+        Called once, with no argument, when another process holds the lock (to say why
+        this one waits).
+    timeout : float
+        Seconds to wait before going on without the lock.
+
+    Yields
+    ------
+    bool
+        Whether this process waited for another one.
+    """
+    try:
+        import fcntl
+    except ImportError:  # no POSIX file locks: compile without
+        yield False
+        return
+    path = os.path.splitext(module.__file__)[0] + ".lock"
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    waited = False
+    try:
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                locked = True
+                break
+            except BlockingIOError:
+                if not waited and on_wait is not None:
+                    on_wait()
+                waited = True
+                if time.monotonic() > deadline:
+                    locked = False
+                    break
+                time.sleep(0.05)
+        try:
+            yield waited
+        finally:
+            if locked:
+                fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
+
+
 def _entries(d: str) -> dict[str, list[str]]:
     """Files of each cached module: ``{modname: [paths]}`` (the module and numba's files
     for it in ``__pycache__``), plus leftover temporary files under the key ``""``."""
@@ -309,6 +372,8 @@ def _entries(d: str) -> dict[str, list[str]]:
     for f in names:
         if f.startswith(PREFIX) and f.endswith(".py"):
             out.setdefault(f[:-3], []).append(os.path.join(d, f))
+        elif f.startswith(PREFIX) and f.endswith(".lock"):
+            out.setdefault(f[:-5], []).append(os.path.join(d, f))
         elif f.startswith(PREFIX) and f.endswith(".tmp"):
             out.setdefault("", []).append(os.path.join(d, f))
     pyc = os.path.join(d, "__pycache__")

@@ -47,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .cache import compile_lock
 from .rod import Rod
 
 __all__ = [
@@ -425,10 +426,18 @@ def simulate(rod, effects=(), *, method="rattle", dt, t_end, frames=None, events
 
     tc = time.perf_counter()
     run = methods[method].Run(rod, effects, dt, t0, rest, **options)
-    if not run.compiled():
-        log.info("compiling the %s stepper for %s: once, about %.0f s", method, run.label,
-                 run.compile_estimate())
-    run.warm()
+    if run.compiled():
+        run.warm()
+    else:
+        def waiting():
+            log.info("waiting for another process compiling the %s stepper for %s",
+                     method, run.label)
+
+        with compile_lock(run.mod, on_wait=waiting):
+            if not run.compiled():
+                log.info("compiling the %s stepper for %s: once, about %.0f s", method,
+                         run.label, run.compile_estimate())
+            run.warm()
     compile_time = time.perf_counter() - tc
 
     n = rod.n_nodes

@@ -20,17 +20,13 @@ def tether_kernel(x, v, t, params, edge_len, mass, out_force):
 
 @numba.njit(cache=True)
 def tether_stiffness(x, v, t, params, edge_len, mass, K, U, C):
-    """Hessian ``k (e_iz - e_jz)(e_iz - e_jz)^T``: rank 1, no band part."""
+    """Hessian ``k (e_iz - e_jz)(e_iz - e_jz)^T``: rank 1, no band part.  It returns the
+    rank ``params[3]`` (1; :class:`BadTether` sets a rank the protocol refuses, with the
+    same compiled code)."""
     U[0, int(params[0]), 1] = 1.0
     U[0, int(params[1]), 1] = -1.0
     C[0, 0] = params[2]
-    return 1
-
-
-@numba.njit(cache=True)
-def bad_rank_stiffness(x, v, t, params, edge_len, mass, K, U, C):
-    """A hook that breaks the protocol (rank above STIFFNESS_RANK)."""
-    return 99
+    return int(params[3])
 
 
 @numba.njit(cache=True)
@@ -53,20 +49,20 @@ def node_spring_stiffness(x, v, t, params, edge_len, mass, K, U, C):
 
 class Tether:
     kind = "force"
-    param_names = ("i", "j", "k")
+    param_names = ("i", "j", "k", "rank")
 
-    def __init__(self, i, j, k, name="tether", hook=True):
+    def __init__(self, i, j, k, name="tether", rank=1):
         self.name = name
-        self.params = np.array([i, j, k], dtype=np.float64)
+        self.params = np.array([i, j, k, rank], dtype=np.float64)
         self.kernel = tether_kernel
-        if hook:
-            self.stiffness = tether_stiffness
+        self.stiffness = tether_stiffness
 
 
 class BadTether(Tether):
-    def __init__(self, i, j, k, name="bad"):
-        super().__init__(i, j, k, name)
-        self.stiffness = bad_rank_stiffness
+    """A tether whose hook breaks the protocol (rank above STIFFNESS_RANK)."""
+
+    def __init__(self, i, j, k, name="tether"):
+        super().__init__(i, j, k, name, rank=99)
 
 
 class NodeSpring:
