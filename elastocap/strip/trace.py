@@ -82,6 +82,7 @@ import math
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 from threadpoolctl import threadpool_limits
 
@@ -390,6 +391,27 @@ class _Cache:
         return s
 
 
+@numba.njit(cache=True)
+def _held_blocks(hc, A, J, N, c, rs):
+    """The held constraints' blocks of the fixed-set Jacobian into the zeroed ``J``:
+    columns N + i, -rs grad z_{A_i} (1 at z_0, h cos theta_j for j < A_i), and rows N + i,
+    c grad z_{A_0}, then c (grad z_{A_i} - grad z_{A_{i-1}}) (h cos theta_j for A_{i-1} <= j
+    < A_i), entry by entry (the bits of the products and differences of the dense rows:
+    the entries that cancel are +0)."""
+    for i in range(A.shape[0]):
+        a = A[i]
+        J[0, N + i] = -rs
+        for j in range(a):
+            J[1 + j, N + i] = -rs * hc[j]
+        if i == 0:
+            J[N, 0] = c
+            lo = 0
+        else:
+            lo = A[i - 1]
+        for j in range(lo, a):
+            J[N + i, 1 + j] = c * hc[j]
+
+
 def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[FunctionProblem, dict]:
     """The fixed-contact-set problem F(v, Delta) = 0 as a :class:`continuation.Problem`.
 
@@ -474,16 +496,14 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
             # continuation (it halves the step), not an exception
             return np.full(N + na + npr, np.nan)
         u, r = split(v)
-        _E, g, _H = s.derivatives(u, hessian=False)
-        zs = s.heights(u)
+        stat, zs = s.stationarity(u, r)
         z = zs[A]
         z[1:] -= zs[A[:-1]]
         if not npr:
-            stat = g - s.reaction_forces(u, r)
             stat[gauge] = cg * u[gauge]
             return np.concatenate([stat, c * z])
         gp, _w = pair_gaps(s, u, P)
-        stat = g - s.reaction_forces(u, r) - pair_jacobian(s, u, P).T @ mu_of(v)
+        stat -= pair_jacobian(s, u, P).T @ mu_of(v)
         stat[gauge] = cg * u[gauge]
         return np.concatenate([stat, c * z, c * gp])
 
@@ -500,12 +520,9 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
     def jacobian(v, p):
         s = cache.at(p)
         u, _r = split(v)
-        G = s.constraint_jacobian(u, A)
         J = np.zeros((N + na + npr, N + na + npr))
         J[:N, :N] = lagrangian_hessian(v, p)
-        J[:N, N:N + na] = -rs * G.T
-        J[N:N + na, :N] = c * G
-        J[N + 1:N + na, :N] -= c * G[:-1]
+        _held_blocks(s.h * np.cos(np.asarray(u[1:], dtype=float)), A, J, N, c, rs)
         if npr:
             Gp = pair_jacobian(s, u, P)
             J[:N, N + na:] = -rs * Gp.T
@@ -1254,9 +1271,8 @@ class ContactProblem(Problem):
         if s is None:
             return np.full(2 * self.N, np.nan)
         u, r = self.split(v)
-        g = s.gradient(u)
-        return np.concatenate([g - s.reaction_forces(u, r),
-                               np.minimum(r, self.c * s.heights(u))])
+        stat, z = s.stationarity(u, r)
+        return np.concatenate([stat, np.minimum(r, self.c * z)])
 
     def jacobian(self, v, p):
         s = self._cache.at(p)
