@@ -1001,6 +1001,7 @@ def continue_branch(
     stop_on=(),
     callback: Callable | None = None,
     tangent=None,
+    tangent_det_sign: int | None = None,
 ) -> Branch:
     """Continue a branch of solutions of ``F(u, p) = 0`` from ``(u0, p0)``.
 
@@ -1033,6 +1034,12 @@ def continue_branch(
     tangent : array_like, shape (n + 1,), optional
         Initial tangent (du/ds, dp/ds); default: computed at the start and
         oriented by ``settings.direction``.
+    tangent_det_sign : {-1, 1}, optional
+        With ``tangent``: the sign of ``det [[dF/du, dF/dp], [tangent^T]]`` at the
+        start, where the caller has it (for a tangent proportional to ``(w, 1)`` with
+        ``dF/du w = -dF/dp``, the sign of ``det dF/du`` times that of ``dp/ds``: the
+        LU that gave ``w`` gives it). The branch-point test's first sign; default:
+        from the LU of that bordered matrix at the start.
 
     Returns
     -------
@@ -1101,8 +1108,16 @@ def continue_branch(
             t0 = core.normalize(np.asarray(tangent, dtype=float).ravel())
             if t0.size != n + 1:
                 raise ValueError(f"tangent: expected shape ({n + 1},); got {t0.shape}")
-        fac0 = factorize(core.bmatrix(x0, core.wrow(t0)))
-        det0 = fac0.det_sign() if fac0 is not None else 0
+        if tangent is not None and tangent_det_sign is not None:
+            if tangent_det_sign not in (-1, 1):
+                raise ValueError(f"tangent_det_sign: got {tangent_det_sign!r}; expected -1 or "
+                                 "1")
+            # the weighted row wrow(t0) has the sign of t0's: det[[J, F_p], [wrow]] =
+            # det J a (w_p + w_u |w|^2) for t0 = a (w, 1)
+            det0 = int(tangent_det_sign)
+        else:
+            fac0 = factorize(core.bmatrix(x0, core.wrow(t0)))
+            det0 = fac0.det_sign() if fac0 is not None else 0
         runs = []
         dirs = [settings.direction] if settings.direction != 0 else [-1, 1]
         for d in dirs:

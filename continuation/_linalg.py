@@ -185,7 +185,8 @@ def factorize(A) -> Factor | None:
     if not np.isfinite(A.sum()):
         return None
     n = A.shape[0]
-    rows = np.flatnonzero((A != 0.0).sum(axis=1) == 1) if n >= SINGLE_ROW_SCAN else ()
+    rows = np.flatnonzero((A != 0.0).sum(axis=1, dtype=np.int32) == 1) \
+        if n >= SINGLE_ROW_SCAN else ()
     if len(rows):
         sub = A[rows]
         cols = np.argmax(sub != 0.0, axis=1)
@@ -195,14 +196,18 @@ def factorize(A) -> Factor | None:
             return None  # two rows with their one nonzero in the same column: singular
         rkeep = np.ones(n, dtype=bool)
         rkeep[rows] = False
-        Ar = A[rkeep]
-        single = (rows, cols, sub[np.arange(rows.size), cols], np.flatnonzero(rkeep),
-                  np.flatnonzero(ckeep), Ar[:, cols])
+        rrest, crest = np.flatnonzero(rkeep), np.flatnonzero(ckeep)
+        # the blocks by index arrays (np.ix_): one gather each, 3x faster than a boolean
+        # row mask then a boolean column mask (measured at n = 306 and 455)
+        # (A12 Fortran-ordered, as a column gather makes it: Factor.solve's products
+        # with it take the same BLAS path)
+        single = (rows, cols, sub[np.arange(rows.size), cols], rrest, crest,
+                  np.asfortranarray(A[np.ix_(rrest, cols)]))
         if rows.size == n:
             return Factor((np.empty((0, 0)), np.empty(0, dtype=np.int32)), False, n, single)
         # A11^T is Fortran-ordered: LAPACK factorizes it in place, without the copy it
         # makes of a C-ordered matrix (Factor.solve swaps the transposes)
-        lu, piv, info = _getrf(Ar[:, ckeep].T, overwrite_a=True)
+        lu, piv, info = _getrf(A[np.ix_(rrest, crest)].T, overwrite_a=True)
         if info > 0:
             return None
         if not np.isfinite(np.diagonal(lu).sum()):

@@ -65,10 +65,12 @@ import numba
 import numpy as np
 
 from dynamics.contact import exclusion_length
+from elastocap.capillary_hessian import CAPILLARY_RANK, capillary_stiffness
 from elastocap.drop import (
     cap_geometry,
     cap_tau_derivatives,
     capillary_energy_and_gradient,
+    locate_on_rod,
     wet_polygon_area,
 )
 from elastocap.geometry import arc_points, count_crossings
@@ -148,6 +150,146 @@ def _constraint_jacobian(hc, out):
         out[k, 0] = 1.0
         for j in range(k):
             out[k, j + 1] = hc[j]
+    return out
+
+
+@numba.njit(cache=True)
+def _energy_gradient(u, B, h, w, f0, s_nodes, s1, s2, area, gamma, g, hd, ho, sn, cs, X, gX,
+                     Gx, Gz):
+    """Energy; its gradient in u written into ``g`` (n + 1,); the bending Hessian's diagonal
+    ``hd`` and off-diagonal ``ho``; sin, cos of the angles; the node positions ``X``; the
+    capillary node gradient ``gX`` and its suffix sums over the nodes beyond each edge
+    ``Gx``, ``Gz`` (n,) (every output array overwritten).
+
+    Gravity and the end force: ``w`` (n,) = q h (L - s_mid) - F h, ``f0`` = q L - F.
+    ``gamma`` = 0: no drop (``gX``, ``Gx``, ``Gz`` zero).
+    """
+    n = u.shape[0] - 1
+    th = u[1:]
+    g[:] = 0.0
+    hd[:] = 0.0
+    ho[:] = 0.0
+    E = _bending(th, B, h, g[1:], hd, ho)
+    z0 = u[0]
+    E += f0 * z0
+    g[0] += f0
+    X[0, 0] = 0.0
+    X[0, 1] = z0
+    for j in range(n):
+        sj = math.sin(th[j])
+        cj = math.cos(th[j])
+        sn[j] = sj
+        cs[j] = cj
+        E += w[j] * sj
+        g[j + 1] += w[j] * cj
+        X[j + 1, 0] = X[j, 0] + h * cj
+        X[j + 1, 1] = X[j, 1] + h * sj
+    gX[:, :] = 0.0
+    if gamma > 0.0:
+        E += capillary_energy_and_gradient(X, s_nodes, s1, s2, area, gamma, gX)[0]
+        # chain rule: d X_k / d theta_j = h (-sin, cos) theta_j for k > j, d X_k / d z_0
+        # = (0, 1)
+        ax = 0.0
+        az = 0.0
+        for j in range(n - 1, -1, -1):
+            ax += gX[j + 1, 0]
+            az += gX[j + 1, 1]
+            Gx[j] = ax
+            Gz[j] = az
+            g[j + 1] += h * (-sn[j] * ax + cs[j] * az)
+        g[0] += az + gX[0, 1]
+    else:
+        Gx[:] = 0.0
+        Gz[:] = 0.0
+    return E
+
+
+@numba.njit(cache=True)
+def _capillary_angle_hessian(X, params, edge_len, sn, cs, h, H):
+    """ADD the Hessian of gamma lambda in the edge angles to ``H`` (n + 1, n + 1), rows and
+    columns 1 + j; returns False (nothing added) where the cap is degenerate.
+
+    The node Hessian is :func:`elastocap.capillary_hessian.capillary_stiffness`'s band K
+    plus U^T C U (rank 5). With d X_k / d theta_j = h e_j (e_j = (-sin, cos) theta_j) for
+    k > j, the angle Hessian of a node matrix M is h^2 e_j^T (sum_{k > j, k' > j'}
+    M_kk') e_j': double suffix sums over the wet nodes, O(m^2) for m wet nodes, instead
+    of the products with the (2m, m - 1) Jacobian. lambda is translation invariant: only
+    the wet edges i1 .. i2 act (as in :func:`elastocap.drop.capillary_energy_and_gradient`,
+    S1 in edge i1, S2 in edge i2).
+    """
+    nn = X.shape[0]
+    K = np.zeros((nn, 2, 5, 2))
+    U = np.zeros((CAPILLARY_RANK, nn, 2))
+    C = np.zeros((CAPILLARY_RANK, CAPILLARY_RANK))
+    if capillary_stiffness(X, X, 0.0, params, edge_len, edge_len, K, U, C) == 0:
+        return False
+    s_nodes = np.empty(nn)
+    s_nodes[0] = 0.0
+    for i in range(nn - 1):
+        s_nodes[i + 1] = s_nodes[i] + edge_len[i]
+    i1 = locate_on_rod(params[1], s_nodes)[0]
+    i2 = locate_on_rod(params[2], s_nodes)[0]
+    ne = i2 - i1 + 1  # wet edges i1 .. i2; nodes i1 .. i2 + 1 (local 0 .. ne)
+    # rank 5: V[r, b] = e_b . sum_{k > i1 + b} U[r, k]
+    V = np.zeros((CAPILLARY_RANK, ne))
+    for r in range(CAPILLARY_RANK):
+        ax = 0.0
+        az = 0.0
+        for b in range(ne - 1, -1, -1):
+            k = i1 + b + 1
+            ax += U[r, k, 0]
+            az += U[r, k, 1]
+            j = i1 + b
+            V[r, b] = h * (-sn[j] * ax + cs[j] * az)
+    # band: T[a, p, c, q] = sum_{a' > c} K[a, p, a', q] (local nodes a, a'; edge c), then
+    # S[b, p, c, q] = sum_{a > b} T[a, p, c, q]
+    T = np.zeros((ne + 1, 2, ne, 2))
+    for a in range(ne + 1):
+        for p in range(2):
+            for q in range(2):
+                acc = 0.0
+                for c in range(ne - 1, -1, -1):
+                    a2 = c + 1  # the node entering the sum
+                    o = a2 - a + 2
+                    if 0 <= o < 5:
+                        acc += K[i1 + a, p, o, q]
+                    T[a, p, c, q] = acc
+    S = np.zeros((ne, 2, ne, 2))
+    for c in range(ne):
+        for p in range(2):
+            for q in range(2):
+                acc = 0.0
+                for b in range(ne - 1, -1, -1):
+                    acc += T[b + 1, p, c, q]
+                    S[b, p, c, q] = acc
+    Hc = np.empty((ne, ne))
+    for b in range(ne):
+        jb = i1 + b
+        ex_b, ez_b = -sn[jb], cs[jb]
+        for c in range(ne):
+            jc = i1 + c
+            ex_c, ez_c = -sn[jc], cs[jc]
+            v = h * h * (ex_b * (S[b, 0, c, 0] * ex_c + S[b, 0, c, 1] * ez_c)
+                         + ez_b * (S[b, 1, c, 0] * ex_c + S[b, 1, c, 1] * ez_c))
+            for r in range(CAPILLARY_RANK):
+                vr = V[r, b]
+                for t in range(CAPILLARY_RANK):
+                    v += C[r, t] * vr * V[t, c]
+            Hc[b, c] = v
+    for b in range(ne):
+        for c in range(ne):
+            H[1 + i1 + b, 1 + i1 + c] += 0.5 * (Hc[b, c] + Hc[c, b])
+    return True
+
+
+@numba.njit(cache=True)
+def _constraint_rows(hc, nodes, out):
+    """The rows ``nodes`` of :func:`_constraint_jacobian` into the zeroed ``out``
+    (len(nodes), n + 1)."""
+    for i in range(nodes.shape[0]):
+        out[i, 0] = 1.0
+        for j in range(nodes[i]):
+            out[i, j + 1] = hc[j]
     return out
 
 
@@ -366,8 +508,20 @@ class DiscreteStrip:
         return self.n
 
     def with_(self, **kw) -> DiscreteStrip:
-        """A copy with some parameters changed (e.g. ``delta``, ``n``)."""
-        return DiscreteStrip(**{**self.to_dict(), **kw})
+        """A copy with some parameters changed (e.g. ``delta``, ``n``).
+
+        The copy shares this strip's node arrays (:attr:`s_nodes`, the mid-edge
+        arclengths, the edge lengths and the load per angle) where the parameters they
+        depend on are unchanged: a trace makes a strip at every Delta it evaluates."""
+        new = DiscreteStrip(**{**self.to_dict(), **kw})
+        mine, theirs = self.__dict__, new.__dict__
+        if new.n == self.n and new.L == self.L:
+            for name in ("s_nodes", "_s_mid", "_edge_len"):
+                if name in mine:
+                    theirs[name] = mine[name]
+            if new.q == self.q and new.F == self.F and "_load" in mine:
+                theirs["_load"] = mine["_load"]
+        return new
 
     def positions(self, u) -> np.ndarray:
         """Node positions, shape (n + 1, 2) (length)."""
@@ -392,11 +546,8 @@ class DiscreteStrip:
         hc = self.h * np.cos(np.asarray(u[1:], dtype=float))
         if nodes is None:
             return _constraint_jacobian(hc, np.zeros((self.n + 1, self.n + 1)))
-        k = np.asarray(nodes, dtype=np.int64)
-        out = np.empty((k.size, self.n + 1))
-        out[:, 0] = 1.0
-        out[:, 1:] = np.where(np.arange(self.n) < k[:, None], hc, 0.0)
-        return out
+        k = np.ascontiguousarray(nodes, dtype=np.int64).ravel()
+        return _constraint_rows(hc, k, np.zeros((k.size, self.n + 1)))
 
     def reaction_forces(self, u, r) -> np.ndarray:
         """sum_k r_k grad z_k(u), shape (n + 1,): the generalized force of the reactions r
@@ -409,18 +560,21 @@ class DiscreteStrip:
         return out
 
     # ------------------------------------------------------------------ energy
-    def _node_to_u(self, theta, g):
-        """Chain rule from a node gradient g (n + 1, 2) to d/du (n + 1,) and the suffix sums."""
-        Gs = np.cumsum(g[::-1], axis=0)[::-1]  # Gs[k] = sum_{k' >= k} g_k'
-        Gx, Gz = Gs[1:, 0], Gs[1:, 1]  # sums over nodes beyond edge j
-        out = np.empty(self.n + 1)
-        out[0] = Gs[0, 1]
-        out[1:] = self.h * (-np.sin(theta) * Gx + np.cos(theta) * Gz)
-        return out, Gx, Gz
-
     @functools.cached_property
     def _s_mid(self):
         return (np.arange(self.n) + 0.5) * self.h
+
+    @functools.cached_property
+    def _load(self):
+        """Gravity and end force per angle: q h (L - s_mid) - F h, shape (n,)."""
+        return self.q * self.h * (self.L - self._s_mid) - self.F * self.h
+
+    @functools.cached_property
+    def _edge_len(self):
+        """Edge lengths as differences of :attr:`s_nodes`: their running sums give back
+        ``s_nodes`` bit for bit (each difference and sum exact, Sterbenz), so the capillary
+        kernels that take edge lengths place S1, S2 in the same edges as the gradient."""
+        return np.diff(self.s_nodes)
 
     def energy_parts(self, u) -> dict:
         """Bending, gravity, capillary and end-force energies (energy units)."""
@@ -449,51 +603,63 @@ class DiscreteStrip:
         """d^2E/du^2, shape (n + 1, n + 1), exact."""
         return self.derivatives(u)[2]
 
+    def stationarity(self, u, r):
+        """dE/du - sum_k r_k grad z_k(u) (the KKT residual of the ground's reactions r,
+        force, shape (n + 1,)) and the heights z_k (shape (n + 1,)), from one pass of
+        :func:`_energy_gradient` (the positions and the angles' cosines it computes)."""
+        u = np.ascontiguousarray(u, dtype=float)
+        g, X, cs = self._first_order(u)[1:4]
+        rs = np.cumsum(np.asarray(r, dtype=float)[::-1])[::-1]
+        g[0] -= rs[0]
+        g[1:] -= self.h * cs * rs[1:]
+        return g, X[:, 1]
+
+    def _first_order(self, u):
+        """(E, g, X, cos, sin, bending Hessian diagonal and off-diagonal, Gx, Gz) of
+        :func:`_energy_gradient` at the contiguous float ``u``."""
+        n = self.n
+        g = np.empty(n + 1)
+        hd, ho, sn, cs = np.empty(n), np.empty(n - 1), np.empty(n), np.empty(n)
+        X, gX = np.empty((n + 1, 2)), np.empty((n + 1, 2))
+        Gx, Gz = np.empty(n), np.empty(n)
+        E = _energy_gradient(u, self.B, self.h, self._load, self.q * self.L - self.F,
+                             self.s_nodes, self.s1, self.s2, self.area, self.gamma, g, hd,
+                             ho, sn, cs, X, gX, Gx, Gz)
+        return E, g, X, cs, sn, hd, ho, Gx, Gz
+
     def derivatives(self, u, hessian=True):
-        """Energy, gradient and (optionally) the exact Hessian in u."""
-        u = np.asarray(u, dtype=float)
-        th = u[1:]
-        n, h, q, L = self.n, self.h, self.q, self.L
-        g = np.zeros(n + 1)
-        gb, hd, ho = np.zeros(n), np.zeros(n), np.zeros(n - 1)
-        E = _bending(th, self.B, h, gb, hd, ho)
-        g[1:] += gb
-        sn, cs = np.sin(th), np.cos(th)
-        w = q * h * (L - self._s_mid) - self.F * h
-        E += q * L * u[0] + float(w @ sn) - self.F * u[0]
-        g[0] += q * L - self.F
-        g[1:] += w * cs
-        H = None
-        if hessian:
-            H = np.zeros((n + 1, n + 1))
-            idx = np.arange(1, n + 1)
-            H[idx, idx] = hd - w * sn
-            H[idx[:-1], idx[1:]] = ho
-            H[idx[1:], idx[:-1]] = ho
+        """Energy, gradient and (optionally) the exact Hessian in u.
+
+        One compiled pass (:func:`_energy_gradient`) for the energy and the gradient; the
+        Hessian is tridiagonal (bending, gravity) plus the drop's: the diagonal term of the
+        positions' curvature and the dense block of the wet edges
+        (:func:`_capillary_angle_hessian`)."""
+        u = np.ascontiguousarray(u, dtype=float)
+        n, h, w = self.n, self.h, self._load
+        E, g, X, cs, sn, hd, ho, Gx, Gz = self._first_order(u)
+        if not hessian:
+            return float(E), g, None
+        H = np.zeros((n + 1, n + 1))
+        idx = np.arange(1, n + 1)
+        # d^2 X_k / d theta_j^2 = -h (cos, sin) theta_j for k > j (diagonal only)
+        H[idx, idx] = hd - w * sn - h * (cs * Gx + sn * Gz)
+        H[idx[:-1], idx[1:]] = ho
+        H[idx[1:], idx[:-1]] = ho
         if self.gamma > 0.0:
-            X = self.positions(u)
-            gX = np.zeros_like(X)
-            ec, _t, _k = capillary_energy_and_gradient(
-                X, self.s_nodes, self.s1, self.s2, self.area, self.gamma, gX
-            )
-            E += ec
-            gu, Gx, Gz = self._node_to_u(th, gX)
-            g += gu
-            if hessian:
-                # d^2 X_k / d theta_j^2 = -h (cos, sin) theta_j for k > j (diagonal only)
-                H[idx, idx] += -h * (cs * Gx + sn * Gz)
+            params = np.array([self.area, self.s1, self.s2, self.gamma])
+            if not _capillary_angle_hessian(X, params, self._edge_len, sn, cs, h, H):
+                # a degenerate cap (the contact points on each other): the dense
+                # reference, whatever it gives there
                 i1, HX = capillary_hessian_nodes(X, self.s_nodes, self.s1, self.s2,
                                                  self.area, self.gamma)
                 m = HX.shape[0] // 2
-                # lambda is translation invariant: only the wet edges i1 .. i1+m-2 act.
-                # X_{i1+a} - X_{i1} = h sum_{i1 <= j < i1+a} (cos, sin) theta_j
                 J = np.zeros((2 * m, m - 1))
                 low = np.tri(m, m - 1, -1)  # entry (a, b) is 1 for b < a
                 J[0::2] = -h * low * sn[i1 : i1 + m - 1]
                 J[1::2] = h * low * cs[i1 : i1 + m - 1]
                 cols = 1 + i1 + np.arange(m - 1)
                 Hc = J.T @ HX @ J
-                H[np.ix_(cols, cols)] += 0.5 * (Hc + Hc.T)  # symmetric to the last bit
+                H[np.ix_(cols, cols)] += 0.5 * (Hc + Hc.T)
         return float(E), g, H
 
     def to_dict(self) -> dict:

@@ -82,6 +82,7 @@ import math
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 from threadpoolctl import threadpool_limits
 
@@ -390,6 +391,27 @@ class _Cache:
         return s
 
 
+@numba.njit(cache=True)
+def _held_blocks(hc, A, J, N, c, rs):
+    """The held constraints' blocks of the fixed-set Jacobian into the zeroed ``J``:
+    columns N + i, -rs grad z_{A_i} (1 at z_0, h cos theta_j for j < A_i), and rows N + i,
+    c grad z_{A_0}, then c (grad z_{A_i} - grad z_{A_{i-1}}) (h cos theta_j for A_{i-1} <= j
+    < A_i), entry by entry (the bits of the products and differences of the dense rows:
+    the entries that cancel are +0)."""
+    for i in range(A.shape[0]):
+        a = A[i]
+        J[0, N + i] = -rs
+        for j in range(a):
+            J[1 + j, N + i] = -rs * hc[j]
+        if i == 0:
+            J[N, 0] = c
+            lo = 0
+        else:
+            lo = A[i - 1]
+        for j in range(lo, a):
+            J[N + i, 1 + j] = c * hc[j]
+
+
 def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[FunctionProblem, dict]:
     """The fixed-contact-set problem F(v, Delta) = 0 as a :class:`continuation.Problem`.
 
@@ -474,16 +496,14 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
             # continuation (it halves the step), not an exception
             return np.full(N + na + npr, np.nan)
         u, r = split(v)
-        _E, g, _H = s.derivatives(u, hessian=False)
-        zs = s.heights(u)
+        stat, zs = s.stationarity(u, r)
         z = zs[A]
         z[1:] -= zs[A[:-1]]
         if not npr:
-            stat = g - s.reaction_forces(u, r)
             stat[gauge] = cg * u[gauge]
             return np.concatenate([stat, c * z])
         gp, _w = pair_gaps(s, u, P)
-        stat = g - s.reaction_forces(u, r) - pair_jacobian(s, u, P).T @ mu_of(v)
+        stat -= pair_jacobian(s, u, P).T @ mu_of(v)
         stat[gauge] = cg * u[gauge]
         return np.concatenate([stat, c * z, c * gp])
 
@@ -500,12 +520,9 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
     def jacobian(v, p):
         s = cache.at(p)
         u, _r = split(v)
-        G = s.constraint_jacobian(u, A)
         J = np.zeros((N + na + npr, N + na + npr))
         J[:N, :N] = lagrangian_hessian(v, p)
-        J[:N, N:N + na] = -rs * G.T
-        J[N:N + na, :N] = c * G
-        J[N + 1:N + na, :N] -= c * G[:-1]
+        _held_blocks(s.h * np.cos(np.asarray(u[1:], dtype=float)), A, J, N, c, rs)
         if npr:
             Gp = pair_jacobian(s, u, P)
             J[:N, N + na:] = -rs * Gp.T
@@ -649,14 +666,19 @@ def _event_function(strip, tools, guard, v0, p0):
 
 
 def _tangent(prob, v, p, orient):
-    """Null vector (dv/ds, dDelta/ds) of [dF/dv, dF/dDelta] at (v, p), with orient . t > 0.
+    """Null vector t = (dv/ds, dDelta/ds) of [dF/dv, dF/dDelta] at (v, p), with
+    orient . t > 0, and the sign of det [[dF/dv, dF/dDelta], [t^T]] (None if not known).
 
     One LU solve dF/dv w = -dF/dDelta, t = (w, 1) / |(w, 1)|, where dF/dv is regular (a
     restart point is no fold of the new contact set, generically); the SVD of the bordered
-    matrix otherwise (4-6x the cost at n = 200).
+    matrix otherwise (4-6x the cost at n = 200). With t = a (w, 1) the bordered
+    determinant is det(dF/dv) a (1 + |w|^2): its sign, from the same LU, is the sign of
+    det(dF/dv) times that of dDelta/ds, which ``continue_branch`` takes instead of
+    factorizing the bordered matrix at the start again.
     """
     Jv, fp = prob.jacobian(v, p), prob.dfdp(v, p)
     t = None
+    det = None
     fac = factorize(Jv.copy())
     if fac is not None:
         w = fac.solve(-fp)
@@ -664,15 +686,18 @@ def _tangent(prob, v, p, orient):
                 np.linalg.norm(fp) + np.linalg.norm(Jv, np.inf) * np.linalg.norm(w)):
             t = np.append(w, 1.0)
             t /= np.linalg.norm(t)
+            det = fac.det_sign()
     if t is None:
         _U, _s, Vt = np.linalg.svd(np.column_stack([Jv, fp]))
         t = Vt[-1]
-    return -t if float(orient(t)) < 0.0 else t
+    if float(orient(t)) < 0.0:
+        t = -t
+    return t, (None if det is None else det * (1 if t[-1] > 0.0 else -1))
 
 
 # --------------------------------------------------------------------------- driver
 def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pairs=None,
-             mu0=None):
+             mu0=None, det_sign=None):
     prob, tools = active_set_problem(strip, active, pairs)
     v0 = tools["join"](u0, r0, mu0)
     p0 = float(strip.delta)
@@ -697,7 +722,7 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pa
         if why:
             return prob, tools, _empty(why), values
     br = continue_branch(prob, v0, p0, st, events=events, stop_on=tuple(events),
-                         tangent=tangent)
+                         tangent=tangent, tangent_det_sign=det_sign)
     if strip.thickness > 0.0 and len(br.p):
         # the same at the corrected first point (a restart at two nearly simultaneous
         # self-contact events can start a hair inside a tube: measured at x = 3, n = 429,
@@ -847,7 +872,8 @@ def _pair_event(strip, tools, v, p, k):
 
 
 def _restart_pair(strip: DiscreteStrip, active, event: ActiveSetEvent, d_in):
-    """(active, u, reactions, pairs, forces, tangent, guard) of the segment that starts at
+    """(active, u, reactions, pairs, forces, tangent, its bordered determinant's sign (or
+    None, :func:`_tangent`), guard) of the segment that starts at
     a self-contact event.
 
     ``pair_lift_off``: the pair is released, the tangent chosen so that its gap opens;
@@ -919,8 +945,8 @@ def _restart_pair(strip: DiscreteStrip, active, event: ActiveSetEvent, d_in):
         def orient(t):
             return t[-1] * d_in
         guard = ()
-    tangent = _tangent(prob, v0, strip.delta, orient)
-    return active, u0, r0, Pn, mun, tangent, guard + extra
+    tangent, det = _tangent(prob, v0, strip.delta, orient)
+    return active, u0, r0, Pn, mun, tangent, det, guard + extra
 
 
 def _index(prob, v, p):
@@ -938,7 +964,8 @@ def _status_name(br):
 
 
 def _restart(strip: DiscreteStrip, active, event: ActiveSetEvent):
-    """(held set, tangent, switched nodes, alternatives) of the segment that starts at
+    """(held set, tangent, its bordered determinant's sign (or None, :func:`_tangent`),
+    switched nodes, alternatives) of the segment that starts at
     ``event``.
 
     With one node at the event, it switches. With several (``event.switched``: their
@@ -977,16 +1004,16 @@ def _restart(strip: DiscreteStrip, active, event: ActiveSetEvent):
 
         lead = nodes.index(group[0])
         v0 = ntools["join"](event.u, r0, event.pair_forces)
-        tangent = _tangent(nprob, v0, strip.delta, lambda t, rates=rates, lead=lead:
+        tangent, det = _tangent(nprob, v0, strip.delta, lambda t, rates=rates, lead=lead:
                            rates(t)[lead])
         r = rates(tangent)
         valid = len(nodes) == 1 or bool(np.all(r > -1e-12 * np.max(np.abs(r))))
         index = _index(nprob, v0, strip.delta) if len(nodes) > 1 else 0
-        ways.append((tuple(group), new, tangent, valid, index))
+        ways.append((tuple(group), new, tangent, valid, index, det))
     valid = [w for w in ways if w[3]]
     pick = min(valid, key=lambda w: (w[4] > 0, -len(w[0]))) if valid else ways[0]
     alternatives = tuple((w[0], int(w[4])) for w in valid if w is not pick)
-    return pick[1], pick[2], pick[0], alternatives
+    return pick[1], pick[2], pick[5], pick[0], alternatives
 
 
 def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
@@ -1034,12 +1061,12 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
     active = np.array(state.active, dtype=bool)
     u0, r0 = state.u.copy(), np.where(active, state.reactions, 0.0)
     pairs, mu0 = (state.pairs, state.pair_forces) if len(state.pairs) else (None, None)
-    cur, tangent, guard = strip, None, ()
+    cur, tangent, tdet, guard = strip, None, None, ()
     segments, events, turning = [], [], []
     status, message = "max_segments", f"stopped after max_segments = {max_segments}"
     for _ in range(max_segments):
         prob, tools, br, values = _segment(cur, u0, r0, active, lo, hi, settings, tangent,
-                                           guard, pairs, mu0)
+                                           guard, pairs, mu0, tdet)
         if len(br.p) == 0:
             status, message = _status_name(br), br.message
             break
@@ -1101,8 +1128,8 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
             d_in = next((float(dd[dd != 0.0][-1]) for dd in
                          (np.diff(x.delta) for x in reversed(segments)) if np.any(dd != 0.0)),
                         float(settings.direction))
-            active, u0, r0, pairs, mu0, tangent, guard = _restart_pair(cur, active,
-                                                                        seg.event, d_in)
+            active, u0, r0, pairs, mu0, tangent, tdet, guard = _restart_pair(
+                cur, active, seg.event, d_in)
             u0 = u0.copy()
             continue
         if kink:
@@ -1120,12 +1147,13 @@ def trace_discrete_branch(strip: DiscreteStrip, state: Equilibrium, delta_range,
             def orient(t, d_in=d_in):
                 return t[-1] * d_in
 
-            tangent = _tangent(nprob, ntools["join"](u0, r0, mu0), cur.delta, orient)
+            tangent, tdet = _tangent(nprob, ntools["join"](u0, r0, mu0), cur.delta, orient)
             guard = ()
             continue
         # the next segment: updated set, from the event, away from the invalid side
         cur = strip.with_(delta=seg.event.delta)
-        active, tangent, guard, seg.event.alternatives = _restart(cur, active, seg.event)
+        active, tangent, tdet, guard, seg.event.alternatives = _restart(cur, active,
+                                                                        seg.event)
         seg.event.followed = guard
         u0 = seg.event.u.copy()
         r0 = np.where(active, seg.event.reactions, 0.0)
@@ -1254,9 +1282,8 @@ class ContactProblem(Problem):
         if s is None:
             return np.full(2 * self.N, np.nan)
         u, r = self.split(v)
-        g = s.gradient(u)
-        return np.concatenate([g - s.reaction_forces(u, r),
-                               np.minimum(r, self.c * s.heights(u))])
+        stat, z = s.stationarity(u, r)
+        return np.concatenate([stat, np.minimum(r, self.c * z)])
 
     def jacobian(self, v, p):
         s = self._cache.at(p)

@@ -134,3 +134,35 @@ def test_fd_fallback_warns_once_and_stays_exact():
         warnings.simplefilter("error")  # a second run on the same object does not warn
         br2 = C.continue_branch(prob, np.zeros(15), 0.0, SET.replace(max_steps=3))
     assert len(br2) == 4
+
+
+def test_tangent_det_sign_is_the_bordered_determinants_sign():
+    # the sign continue_branch takes for a given tangent t = a (w, 1), dF/du w = -dF/dp:
+    # sign(det dF/du) sign(dp/ds), against numpy's slogdet of the bordered matrix on both
+    # sides of the fold (where both factors flip); and the branch with it given is the
+    # branch with it computed, bit for bit
+    prob = Bratu(24, "chebyshev")
+    br = C.continue_branch(prob, np.zeros(23), 0.0, SET)
+    assert len(br.folds) == 1
+    k_fold = int(np.argmin(np.abs(br.p - br.folds[0].p)))
+    for k in (3, k_fold - 4, k_fold + 4, len(br.p) - 3):
+        u, p = br.u[k], float(br.p[k])
+        J, fp = prob.jacobian(u, p), prob.dfdp(u, p)
+        fac = C.factorize(J.copy())
+        w = fac.solve(-fp)
+        for a in (1.0, -1.0):
+            t = a * np.append(w, 1.0) / np.linalg.norm(np.append(w, 1.0))
+            sign = fac.det_sign() * (1 if t[-1] > 0 else -1)
+            ref = np.linalg.slogdet(np.block([[J, fp[:, None]], [t[None, :]]]))[0]
+            assert sign == ref
+    st = SET.replace(direction=1, max_steps=15)
+    u, p = br.u[5], float(br.p[5])
+    J, fp = prob.jacobian(u, p), prob.dfdp(u, p)
+    fac = C.factorize(J.copy())
+    t = np.append(fac.solve(-fp), 1.0)
+    a = C.continue_branch(prob, u, p, st, tangent=t)
+    b = C.continue_branch(prob, u, p, st, tangent=t, tangent_det_sign=fac.det_sign())
+    assert np.array_equal(a.p, b.p) and np.array_equal(a.u, b.u)
+    assert np.array_equal(a.stability, b.stability)
+    with pytest.raises(ValueError, match="tangent_det_sign: got 0"):
+        C.continue_branch(prob, u, p, st, tangent=t, tangent_det_sign=0)

@@ -102,6 +102,37 @@ def test_capillary_node_hessian_against_its_gradient():
     assert np.max(np.abs(H - Hfd)) < 1e-6 * np.max(np.abs(H))
 
 
+def test_angle_hessian_is_the_chain_rule_of_the_node_hessian():
+    # the compiled Hessian in the angles (capillary_stiffness's band + rank 5, by double
+    # suffix sums) against the dense chain rule J^T H_X J of the numpy node Hessian
+    # (capillary_hessian_nodes) plus the positions' curvature term, with the gradient's
+    # chain rule of elastocap.drop's node gradient; every resolution the trace uses
+    for n, x, delta, seed in ((40, 3.0, 1.1, 1), (143, 2.0, 0.4, 2), (198, 4.0, 2.1, 3),
+                              (247, 6.0, 1.7, 4), (297, 3.0, 1.3, 5), (429, 5.0, 0.9, 6)):
+        S = DiscreteStrip(n, L, x, delta, 0.36, 40.0, F=0.2)
+        u = random_state(S, seed=seed, amp=0.05)
+        E, g, H = S.derivatives(u)
+        X = S.positions(u)
+        th = u[1:]
+        gX = np.zeros_like(X)
+        capillary_energy_and_gradient(X, S.s_nodes, S.s1, S.s2, S.area, S.gamma, gX)
+        suffix = np.cumsum(gX[::-1], axis=0)[::-1]
+        i1, HX = capillary_hessian_nodes(X, S.s_nodes, S.s1, S.s2, S.area, S.gamma)
+        m = HX.shape[0] // 2
+        J = np.zeros((2 * m, m - 1))
+        low = np.tri(m, m - 1, -1)
+        J[0::2] = -S.h * low * np.sin(th[i1:i1 + m - 1])
+        J[1::2] = S.h * low * np.cos(th[i1:i1 + m - 1])
+        ref = np.zeros_like(H)
+        cols = 1 + i1 + np.arange(m - 1)
+        ref[np.ix_(cols, cols)] = J.T @ HX @ J
+        ref[1:, 1:] += np.diag(-S.h * (np.cos(th) * suffix[1:, 0] + np.sin(th) * suffix[1:, 1]))
+        # the rest: bending and gravity (tridiagonal), from the drop-free strip
+        ref += S.with_(gamma=0.0, area=0.0).hessian(u)
+        assert np.max(np.abs(H - ref)) < 1e-11 * np.max(np.abs(H)), n
+        assert np.array_equal(H, H.T)
+
+
 def test_constraint_jacobian_bit_identical_to_the_triangle_and_the_heights():
     # the compiled kernel writes the matrix of the numpy form np.tril(h cos theta_j) entry
     # by entry: the same bits; and its rows are the derivatives of the heights (central
