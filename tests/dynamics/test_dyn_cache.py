@@ -1,6 +1,7 @@
 """The generated-code cache: private directory, content-addressed names, files checked
 before they are executed, bounded size and age, clear/info."""
 
+import contextlib
 import os
 import stat
 import sys
@@ -177,32 +178,41 @@ time.sleep(float(sys.argv[2]))
 """
 
 
+@contextlib.contextmanager
+def _lock_held_by_another_process(mod, seconds):
+    """A child process holding ``mod``'s compile lock for ``seconds``; yields it."""
+    import subprocess
+
+    lock = os.path.splitext(mod.__file__)[0] + ".lock"
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, lock, str(seconds)],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        yield holder
+    finally:
+        holder.kill()
+        holder.wait()
+        holder.stdout.close()
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX file locks")
 def test_a_second_process_waits_for_the_one_compiling_then_goes_on(tmp_cache):
     """While another process holds a module's compile lock, :func:`cache.compile_lock`
     waits (saying so once) and enters when the holder ends; uncontended, it enters at
     once.  The lock file belongs to the module: eviction and ``clear`` remove it."""
-    import subprocess
     import time
 
     mod = cache.load_module("test", SRC, "d" * 64)
-    lock = os.path.splitext(mod.__file__)[0] + ".lock"
-    holder = subprocess.Popen([sys.executable, "-c", HOLD, lock, "1.0"],
-                              stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout.readline().strip() == "held"
-        said = []
+    said = []
+    with _lock_held_by_another_process(mod, 1.0) as holder:
         t0 = time.monotonic()
         with cache.compile_lock(mod, on_wait=lambda: said.append(1)) as waited:
             entered = time.monotonic() - t0
             assert holder.poll() is not None  # the holder had ended (its lock released)
         assert waited and said == [1] and entered > 0.5
-    finally:
-        holder.kill()
-        holder.wait()
-        holder.stdout.close()
     with cache.compile_lock(mod, on_wait=lambda: said.append(2)) as waited:
         assert not waited and said == [1]
+    lock = os.path.splitext(mod.__file__)[0] + ".lock"
     assert os.path.exists(lock)
     assert cache.clear() == 1
     assert not os.path.exists(lock)
@@ -210,17 +220,7 @@ def test_a_second_process_waits_for_the_one_compiling_then_goes_on(tmp_cache):
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX file locks")
 def test_a_lock_held_past_the_timeout_is_passed_by(tmp_cache):
-    import subprocess
-
     mod = cache.load_module("test", SRC, "d" * 64)
-    lock = os.path.splitext(mod.__file__)[0] + ".lock"
-    holder = subprocess.Popen([sys.executable, "-c", HOLD, lock, "30"],
-                              stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout.readline().strip() == "held"
+    with _lock_held_by_another_process(mod, 30) as holder:
         with cache.compile_lock(mod, timeout=0.2) as waited:
             assert waited and holder.poll() is None
-    finally:
-        holder.kill()
-        holder.wait()
-        holder.stdout.close()
