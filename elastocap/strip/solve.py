@@ -44,10 +44,12 @@ from elastocap.strip.model import (
 )
 
 __all__ = [
+    "DESCENT_COARSE_N",
     "PAIR_SLACK",
     "Equilibrium",
     "contact_pairs_of",
     "R_REL",
+    "descend_coarse_to_fine",
     "descend_from_saddle",
     "lagrangian_hessian",
     "minimize_energy",
@@ -93,6 +95,8 @@ _THICKNESS_STEPS = 16
 # the displacement): large enough for the descent to leave the saddle's neighbourhood at
 # once, small next to the distance to either minimum (~1-3 rad in the tail angles).
 _PUSH = 0.02
+#: Edges above which :func:`descend_coarse_to_fine` descends on half the edges first.
+DESCENT_COARSE_N = 160
 
 
 def lagrangian_hessian(strip: DiscreteStrip, u, r, pairs=None, mu=None) -> np.ndarray:
@@ -561,8 +565,10 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
     E, g, H = _penalty(strip, u, k)
     radius = 1.0
     eig = None  # the eigen-decomposition of H, kept while a rejected step leaves H as it is
+    stopped = "the trust region's radius below 1e-14 rad"
     for _ in range(max_iter):
         if float(np.linalg.norm(g)) <= _DESCENT_GTOL:
+            stopped = None
             break
         if eig is None:
             eig = np.linalg.eigh(0.5 * (H + H.T))
@@ -578,10 +584,19 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
             eig = None
         if radius < 1e-14:
             break
+    else:
+        stopped = f"max_iter = {max_iter} trust-region iterations"
     z = strip.heights(u)
     # contacts: penetrating, or within the penalty's reach of the ground
     act = z <= 1e-9
-    return solve_equilibrium(strip, u, active=act, tol=tol)
+    eq = solve_equilibrium(strip, u, active=act, tol=tol)
+    if not eq.success and stopped is not None:
+        eq.message = (f"the descent stopped at {stopped} with |grad E| = "
+                      f"{float(np.linalg.norm(g)):.3e} > {_DESCENT_GTOL:g} (n = {strip.n}; "
+                      f"descend from a coarser strip, descend_coarse_to_fine, or raise "
+                      f"max_iter), and the active-set Newton from there failed: "
+                      f"{eq.message}")
+    return eq
 
 
 def contact_pairs_of(strip: DiscreteStrip, u) -> np.ndarray:
@@ -687,20 +702,47 @@ def refine(coarse: DiscreteStrip, eq: Equilibrium, fine: DiscreteStrip,
     return out
 
 
+def descend_coarse_to_fine(strip: DiscreteStrip, start) -> Equilibrium:
+    """The minimum reached by descent from ``start(strip)``, found on coarser strips first.
+
+    Above ``DESCENT_COARSE_N`` edges the descent runs on the strip with half the edges
+    (recursively), and its minimum, carried to this strip by :func:`prolong`, starts the
+    descent here; the basin is chosen on a strip of at most ``DESCENT_COARSE_N`` edges.
+    The descent's iterations grow with n from a start far from the minimum (the ground
+    penalty stiffens as 1 / h^3 and the trust region shrinks at each node that reaches the
+    ground; x = 3, Delta = 1.2, from the flat strip: 492 iterations at n = 429, 1207 at
+    n = 572), and from a prolonged minimum they do not. ``start`` is a function of the
+    strip giving its starting u (as :func:`~elastocap.strip.model.flat_state`).
+    """
+    if strip.n > DESCENT_COARSE_N:
+        coarse = strip.with_(n=strip.n // 2)
+        eq = descend_coarse_to_fine(coarse, start)
+        if not eq.success:
+            return eq
+        return minimize_energy(strip, prolong(coarse, eq.u, strip))
+    return minimize_energy(strip, start(strip))
+
+
 def open_state(strip: DiscreteStrip) -> Equilibrium:
-    """The state reached by descent from the flat strip (a quasi-static deposition)."""
-    return minimize_energy(strip, flat_state(strip))
+    """The state reached by descent from the flat strip (a quasi-static deposition;
+    :func:`descend_coarse_to_fine`)."""
+    return descend_coarse_to_fine(strip, flat_state)
+
+
+def _half_circle(strip: DiscreteStrip) -> np.ndarray:
+    s = (np.arange(strip.n) + 0.5) * strip.h
+    th = math.pi * np.clip((s - strip.s1) / (strip.s2 - strip.s1), 0.0, 1.0)
+    return np.concatenate([[0.0], th])
 
 
 def wrapped_state(strip: DiscreteStrip) -> Equilibrium:
-    """The state reached by descent from the strip folded over the drop.
+    """The state reached by descent from the strip folded over the drop
+    (:func:`descend_coarse_to_fine`).
 
     Seed: flat up to S1, turning by pi at a constant rate over the wet part [S1, S2] (a
     half-circle around the drop), the tail straight back over the drop.
     """
-    s = (np.arange(strip.n) + 0.5) * strip.h
-    th = math.pi * np.clip((s - strip.s1) / (strip.s2 - strip.s1), 0.0, 1.0)
-    return minimize_energy(strip, np.concatenate([[0.0], th]))
+    return descend_coarse_to_fine(strip, _half_circle)
 
 
 def unstable_mode(strip: DiscreteStrip, eq: Equilibrium) -> np.ndarray:

@@ -283,6 +283,48 @@ def test_descent_keeps_the_decomposition_over_rejected_steps_bit_identical(monke
         assert kept < calls["n"]
 
 
+@pytest.mark.parametrize("x, delta", [(3.0, 1.2), (5.0, 0.9)])
+def test_coarse_to_fine_descent_reaches_the_direct_descents_minimum(monkeypatch, x, delta):
+    # the descent from each seed on 50 and 100 edges first, then 200, lands on the minimum
+    # the direct descent on 200 edges reaches (its iterations grow with n from a far start;
+    # from a prolonged minimum they do not)
+    from elastocap.strip import solve
+
+    monkeypatch.setattr(solve, "DESCENT_COARSE_N", 60)
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": x, "drop.wetted_length": delta})
+    S = discrete_strip_for(sc, 200)
+    calls = []
+    minimize = solve.minimize_energy
+
+    def counted(strip, u0, *a, **k):
+        calls.append(strip.n)
+        return minimize(strip, u0, *a, **k)
+
+    s = (np.arange(S.n) + 0.5) * S.h
+    folded = np.concatenate([[0.0], math.pi * np.clip((s - S.s1) / (S.s2 - S.s1), 0, 1)])
+    for seed, u0 in ((solve.open_state, flat_state(S)), (solve.wrapped_state, folded)):
+        direct = minimize(S, u0)
+        calls.clear()
+        monkeypatch.setattr(solve, "minimize_energy", counted)
+        eq = seed(S)
+        monkeypatch.setattr(solve, "minimize_energy", minimize)
+        assert calls == [50, 100, 200]
+        assert direct.success and eq.success, (direct.message, eq.message)
+        assert eq.index == direct.index == 0
+        assert np.max(np.abs(eq.u - direct.u)) < 1e-8
+        assert np.array_equal(eq.active, direct.active)
+        assert abs(eq.energy - direct.energy) < 1e-10 * abs(direct.energy)
+
+
+def test_a_descent_cut_short_says_so():
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": 3.0, "drop.wetted_length": 1.2})
+    S = discrete_strip_for(sc, 100)
+    eq = minimize_energy(S, flat_state(S), max_iter=3)
+    assert not eq.success
+    assert "max_iter = 3 trust-region iterations" in eq.message
+    assert "descend_coarse_to_fine" in eq.message
+
+
 def test_invalid_input_named():
     with pytest.raises(ValueError, match="n: got 2"):
         DiscreteStrip(2, L, 2.0, 1.1, 0.36, 40.0)
