@@ -150,6 +150,8 @@ def cmd_branches(args) -> int:
     bs = _trace_or_fail(args, scene, progress, (0, 2))
     if bs is None:
         return 1
+    if bs.metadata.get("contact_note"):
+        print(f"elastocap: warning: {bs.metadata['contact_note']}", file=sys.stderr)
     progress(1, 2, f"{len(bs.branches)} branches traced; writing the files and the figure")
     paths = bs.save(folder)
     paths.append(folder.savefig(lambda path: bs.plot(path), "branches.png"))

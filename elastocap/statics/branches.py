@@ -182,15 +182,28 @@ def _plot(bs, path=None):
     return plot_branch_set(bs, path)
 
 
+def contact_note(scene: Scene) -> str:
+    """What this model leaves out of a scene with a thickness ("" without one): the
+    spectral free rod has no contact."""
+    d = scene.rod.thickness
+    if not d:
+        return ""
+    return (f"rod.thickness = {d:g} is not in this model (the spectral free rod, no contact):"
+            " states whose dry tails cross are flagged inadmissible; the equilibria with the "
+            "rod in contact with itself: elastocap.strip.freerod (docs/guide/statics-search"
+            ".md, 'Equilibria with rod self-contact')")
+
+
 def report_lines(bs) -> list[str]:
     """The free rod's report: one line per located fold, branch point, equal-energy point,
     end on the admissible boundary and unlocated point."""
     out = [f"{bs.scene.name}: {len(bs.branches)} branches in {bs.parameter} over "
            f"[{bs.prange[0]:.6g}, {bs.prange[1]:.6g}] (N={bs.metadata['N']}, "
            f"{bs.metadata['wall_time_s']:.2f} s)"]
-    note = bs.metadata.get("range_note")
-    if note:
-        out.append(f"  note: {note}")
+    for key in ("range_note", "contact_note"):
+        note = bs.metadata.get(key)
+        if note:
+            out.append(f"  note: {note}")
     for f in bs.folds:
         err = f.get("error_estimate")
         err = "(not estimated)" if err is None else f"± {err:.1e}"
@@ -414,6 +427,7 @@ def trace_branches(
         "parameter": parameter,
         "range": [lo, hi],
         "range_note": clip_note,
+        "contact_note": contact_note(scene),
         "admissible_region": list(admissible_range(scene, parameter)[:2]),
         "N": problem.N,
         "nodes": nodes,

@@ -218,3 +218,20 @@ def test_assert_folds_helper(fig6):
         assert_folds(fig6, [{"value": FOLD_REF * 1.001}])
     ok, table = compare_folds(fig6.folds, [], 1e-8)
     assert not ok and "expected 0, found 1" in table
+
+
+def test_branches_of_a_rod_with_a_thickness_say_the_model_has_no_contact(tmp_path, capsys):
+    # the spectral free rod has no contact: a thickness in the scene is named, in the
+    # warning, the report and the saved metadata, not silently dropped
+    assert main(["branches", "supp-fig5", "--set", "rod.thickness=0.05", "--out",
+                 str(tmp_path)]) == 0
+    cap = capsys.readouterr()
+    assert "warning: rod.thickness = 0.05 is not in this model" in cap.err
+    assert "note: rod.thickness = 0.05 is not in this model" in cap.out
+    assert "elastocap.strip.freerod" in cap.err
+    from elastocap.statics.branches import BranchSet
+
+    assert "rod.thickness = 0.05" in BranchSet.load(tmp_path).metadata["contact_note"]
+    assert main(["branches", "supp-fig5", "--out", str(tmp_path / "none")]) == 0
+    cap = capsys.readouterr()
+    assert "thickness" not in cap.err + cap.out
