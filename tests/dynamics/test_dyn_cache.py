@@ -1,7 +1,6 @@
 """The generated-code cache: private directory, content-addressed names, files checked
 before they are executed, bounded size and age, clear/info."""
 
-import contextlib
 import os
 import stat
 import sys
@@ -9,6 +8,7 @@ import sys
 import pytest
 
 from dynamics import cache
+from lock_holder import lock_held_by_another_process
 
 SRC = "VALUE = 42\n"
 
@@ -169,32 +169,6 @@ def test_cli_cache_refuses_a_shared_directory(tmp_path, monkeypatch, capsys):
     assert "writable by group or others" in capsys.readouterr().err
 
 
-HOLD = """
-import fcntl, os, sys, time
-fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT, 0o600)
-fcntl.flock(fd, fcntl.LOCK_EX)
-print("held", flush=True)
-time.sleep(float(sys.argv[2]))
-"""
-
-
-@contextlib.contextmanager
-def _lock_held_by_another_process(mod, seconds):
-    """A child process holding ``mod``'s compile lock for ``seconds``; yields it."""
-    import subprocess
-
-    lock = os.path.splitext(mod.__file__)[0] + ".lock"
-    holder = subprocess.Popen([sys.executable, "-c", HOLD, lock, str(seconds)],
-                              stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout.readline().strip() == "held"
-        yield holder
-    finally:
-        holder.kill()
-        holder.wait()
-        holder.stdout.close()
-
-
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX file locks")
 def test_a_second_process_waits_for_the_one_compiling_then_goes_on(tmp_cache):
     """While another process holds a module's compile lock, :func:`cache.compile_lock`
@@ -204,7 +178,7 @@ def test_a_second_process_waits_for_the_one_compiling_then_goes_on(tmp_cache):
 
     mod = cache.load_module("test", SRC, "d" * 64)
     said = []
-    with _lock_held_by_another_process(mod, 2.0):
+    with lock_held_by_another_process(mod, 2.0):
         t0 = time.monotonic()
         with cache.compile_lock(mod, on_wait=lambda: said.append(1)) as waited:
             # entered when the holder ended (the kernel released its lock), not before
@@ -221,6 +195,6 @@ def test_a_second_process_waits_for_the_one_compiling_then_goes_on(tmp_cache):
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX file locks")
 def test_a_lock_held_past_the_timeout_is_passed_by(tmp_cache):
     mod = cache.load_module("test", SRC, "d" * 64)
-    with _lock_held_by_another_process(mod, 30) as holder:
+    with lock_held_by_another_process(mod, 30) as holder:
         with cache.compile_lock(mod, timeout=0.2) as waited:
             assert waited and holder.poll() is None

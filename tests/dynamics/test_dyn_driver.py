@@ -165,3 +165,29 @@ def test_first_compile_is_announced(tmp_path, monkeypatch, caplog):
     with caplog.at_level(logging.INFO, logger="dynamics"):
         simulate(Rod.straight(10, 1.0), (), dt=1e-4, t_end=1e-3, frames=2)
     assert "compiling" not in caplog.text
+
+
+@pytest.mark.skipif(platform.system() == "Windows", reason="POSIX file locks")
+def test_simulate_compiles_a_new_stepper_under_its_compile_lock(monkeypatch, caplog):
+    """A stepper not compiled yet is compiled while holding its module's compile lock
+    (:func:`dynamics.cache.compile_lock`): with another process holding it, ``simulate``
+    waits, says so, and then runs as before."""
+    import time
+
+    from lock_holder import lock_held_by_another_process
+
+    from dynamics import rattle
+
+    before = _free("rattle")  # compiled in this process: "not compiled" is simulated below
+    run = rattle.Run(_rod(40, 4.6), (Capillary(1.5, 0.3, 4.3, 1.0), Damping(0.2)),
+                     0.9 * 0.45 * (4.6 / 40) ** 2, 0.0, None)
+    monkeypatch.setattr(rattle.Run, "compiled", lambda self: False)
+    with caplog.at_level(logging.INFO, logger="dynamics"), \
+            lock_held_by_another_process(run.mod, 1.5):
+        t0 = time.monotonic()
+        res = _free("rattle")
+        waited = time.monotonic() - t0
+    assert "waiting for another process compiling the rattle stepper" in caplog.text
+    assert "compiling the rattle stepper" in caplog.text
+    assert waited > 1.0
+    assert np.array_equal(res.positions, before.positions)
