@@ -1,9 +1,12 @@
-"""The strip's static window at x = 2 ... 6 l_eg at three resolutions, with observed orders.
+"""The strip's static window at x = 2 ... 6 l_eg at three or more resolutions, with
+observed orders.
 
-    python3 benchmarks/strip_convergence.py [--x 2 3 4 5 6] [--n 143 214 286] [--out DIR]
+    python3 benchmarks/strip_convergence.py [--x 2 3 4 5 6] [--n 143 214 286 ...]
+        [--range LO HI] [--spreading] [--out DIR]
 
-For each x and n, every branch in Delta over [0.5, min(2.2, 1.95 x)] is traced
-(:func:`elastocap.strip.trace.trace_contact_branches`, no refinement) and recorded:
+For each x and n, every branch in Delta over [0.5, min(2.2, 1.95 x)] (or ``--range``) is
+traced (:func:`elastocap.strip.trace.trace_contact_branches`, no refinement; with
+``--spreading`` also the spreading past the deposited state's end) and recorded:
 
 * ``deposition_end``: the end of the stable, open, admissible stretch of the branch traced
   up from the deposition at the lowest seed (Delta = 0.6): the smallest Delta at which the
@@ -13,10 +16,15 @@ For each x and n, every branch in Delta over [0.5, min(2.2, 1.95 x)] is traced
   cannot stay on the state it was deposited on.
 * ``open_max`` / ``encapsulated_min``: the window over every traced branch.
 
-Each quantity is printed at the three n with the observed order p of v(n) = v + C n^-p
-(through three values; NaN when the differences do not shrink monotonically) and the
-Richardson estimate of the error of the finest value. Writes ``strip_convergence.json``
-after each (x, n) (resumable: a finished (x, n) is not recomputed).
+* ``spreading`` (with ``--spreading``): where the spreading, followed through its jumps,
+  stops being open (``open_branch_end(bs)["spreading"]``).
+
+Each quantity is printed at every n with the observed order p of v(n) = v + C n^-p
+(through the last three values; NaN when the differences do not shrink monotonically) and
+the Richardson estimate of the error of the finest value; with four or more n, also the
+least-squares fit v + C/n over the last four values (first order): its limit and largest
+residual. Writes ``strip_convergence.json`` after each (x, n, range) (resumable: a finished
+one is not recomputed).
 """
 
 from __future__ import annotations
@@ -56,28 +64,55 @@ def observed_order(ns, vals):
     return p, abs(err)
 
 
+def first_order_limit(ns, vals):
+    """The limit and the largest residual of the least-squares fit v + C / n."""
+    import numpy as np
+
+    v = np.asarray(vals, dtype=float)
+    if not np.all(np.isfinite(v)):
+        return math.nan, math.nan
+    A = np.column_stack([np.ones(len(ns)), 1.0 / np.asarray(ns, dtype=float)])
+    c = np.linalg.lstsq(A, v, rcond=None)[0]
+    return float(c[0]), float(np.max(np.abs(v - A @ c)))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--x", type=float, nargs="+", default=[2.0, 3.0, 4.0, 5.0, 6.0])
-    ap.add_argument("--n", type=int, nargs=3, default=[143, 214, 286])
+    ap.add_argument("--n", type=int, nargs="+", default=[143, 214, 286])
+    ap.add_argument("--range", type=float, nargs=2, default=None, metavar=("LO", "HI"))
+    ap.add_argument("--spreading", action="store_true")
     ap.add_argument("--out", default="out/strip_convergence")
     a = ap.parse_args()
+    if len(a.n) < 3:
+        ap.error(f"--n: got {a.n}; expected three or more resolutions")
     os.makedirs(a.out, exist_ok=True)
     path = os.path.join(a.out, "strip_convergence.json")
     data = json.load(open(path)) if os.path.exists(path) else {"runs": []}
-    done = {(r["x"], r["n"]) for r in data["runs"]}
+    def rng(r):
+        return tuple(r.get("range") or (0.5, min(2.2, 1.95 * r["x"])))
+
+    def key(r):
+        return r["x"], r["n"], rng(r), bool(r.get("spreading"))
+
+    done = {key(r) for r in data["runs"]}
     sp = load_scene("fig3-strip").spreading
     for x in a.x:
+        prange = tuple(a.range) if a.range else (0.5, min(2.2, 1.95 * x))
         for n in a.n:
-            if (x, n) in done:
+            if (x, n, prange, a.spreading) in done:
                 continue
             sc = load_scene("fig3-strip", {"drop.distance_from_end": x})
             t = time.perf_counter()
-            bs = trace_contact_branches(sc, prange=(0.5, min(2.2, 1.95 * x)), n=n,
-                                        refine=False)
+            bs = trace_contact_branches(sc, prange=prange, n=n, refine=False,
+                                        spreading=a.spreading)
             w = bs.results["window"]
-            run = {"x": x, "n": n, "wall_time_s": time.perf_counter() - t,
-                   "deposition_end": open_branch_end(bs),
+            end = open_branch_end(bs)
+            run = {"x": x, "n": n, "range": list(prange), "spreading": a.spreading,
+                   "wall_time_s": time.perf_counter() - t,
+                   "deposition_end": {k: v for k, v in end.items() if k != "past_loss"},
+                   "spreading_end": end.get("spreading"),
+                   "past_loss": end.get("past_loss"),
                    "open_max": w["open_max"], "encapsulated_min": w["encapsulated_min"],
                    "bistable": w["bistable"], "width": w["width"],
                    "branches": [{k: b[k] for k in ("label", "range", "end_status")}
@@ -95,27 +130,36 @@ def main():
                   f"encapsulated_min {w['encapsulated_min']['value']} "
                   f"({w['encapsulated_min']['how']}), {run['wall_time_s']:.0f} s",
                   file=sys.stderr, flush=True)
-    n1, n2, n3 = a.n
-    print(f"| x | quantity | n = {n1} | n = {n2} | n = {n3} | order | error of finest | "
-          "We^1/2 |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    heads = " | ".join(f"n = {n}" for n in a.n)
+    print(f"| x | quantity | {heads} | order | error of finest | first-order limit "
+          "(residual) | We^1/2 |")
+    print("|---|---|" + "---:|" * len(a.n) + "---:|---:|---:|---:|")
+    keys = ("deposition_end", "open_max", "encapsulated_min") + \
+        (("spreading_end",) if a.spreading else ())
     for x in a.x:
-        runs = {r["n"]: r for r in data["runs"] if r["x"] == x}
+        prange = tuple(a.range) if a.range else (0.5, min(2.2, 1.95 * x))
+        runs = {r["n"]: r for r in data["runs"]
+                if (r["x"], rng(r), bool(r.get("spreading"))) ==
+                (x, prange, a.spreading)}
         if not all(n in runs for n in a.n):
             continue
-        for key in ("deposition_end", "open_max", "encapsulated_min"):
-            vals = [runs[n][key]["value"] for n in a.n]
-            vals = [float(v) if v is not None else math.nan for v in vals]
-            p, err = observed_order(a.n, vals)
+        for q in keys:
+            ends = [runs[n][q] or {} for n in a.n]
+            vals = [float(e["value"]) if e.get("value") is not None else math.nan
+                    for e in ends]
+            p, err = observed_order(a.n[-3:], vals[-3:])
+            lim, res = first_order_limit(a.n[-4:], vals[-4:]) if len(a.n) >= 4 else \
+                (math.nan, math.nan)
             ws = sp.we_sqrt(vals[-1]) if math.isfinite(vals[-1]) else math.nan
-            hows = [_short(runs[n][key]) for n in a.n]
-            print(f"| {x:g} | {key} | " + " | ".join(f"{v:.4f} {h}" for v, h in
-                                                     zip(vals, hows, strict=True))
-                  + f" | {p:.2f} | {err:.1e} | {ws:.2f} |")
+            hows = [_short(e) for e in ends]
+            print(f"| {x:g} | {q} | " + " | ".join(f"{v:.4f} {h}" for v, h in
+                                                   zip(vals, hows, strict=True))
+                  + f" | {p:.2f} | {err:.1e} | {lim:.4f} ({res:.0e}) | {ws:.2f} |")
     print("\nHow each value ends: sf smooth fold, cf contact fold (cf= stable on both "
           "sides: the branch turns back at an active-set event), kc kind change, sl "
           "stability lost, ia inadmissible, tp turning point not located, rg the range's "
-          "end, be the branch ended otherwise.")
+          "end, je / ji a jump to an encapsulated / self-crossing state (the spreading), be "
+          "the branch ended otherwise (or the spreading was not followed to an end).")
 
 
 def _short(end):
@@ -124,7 +168,8 @@ def _short(end):
     tag = {"smooth fold": "sf", "smooth_fold": "sf", "contact fold": "cf",
            "contact_fold": "cf", "kind change": "kc", "kind_change": "kc",
            "stability lost": "sl", "stability_lost": "sl", "inadmissible": "ia",
-           "range": "rg",
+           "range": "rg", "jump to an encapsulated state": "je",
+           "jump to an inadmissible state": "ji",
            "turning point (not located)": "tp"}.get(how, "be")
     return tag + ("=" if end.get("stable_both_sides") else "")
 

@@ -66,7 +66,7 @@ def compute(scene, xs, ns, tol=TOL_DELTA, progress=True) -> list[dict]:
     for k, x in enumerate(xs):
         sc = scene.with_overrides({"drop.distance_from_end": float(x)})
         bs = trace_contact_branches(sc, prange=(D_LO, min(D_HI, 1.95 * x)), n=ns[0],
-                                    n_refined=ns[1])
+                                    n_refined=ns[1], spreading=True)
         rows.append(summarize(x, bs, scene.spreading, tol))
         if progress:
             r = rows[-1]
@@ -86,7 +86,9 @@ def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
     ``open_settled`` / ``wrapped_settled``: it is at most ``tol``; the same for
     ``deposition_end`` (the static prediction: where the state a quasi-static spreading
     lands on, traced up from the deposition at Delta = 0.6, stops existing or being stable,
-    :func:`elastocap.strip.trace.open_branch_end`); ``folds``: the located folds at the
+    :func:`elastocap.strip.trace.open_branch_end`) and ``spreading_end`` (where the
+    spreading, followed through its jumps, stops being open: ``spreading`` of the same);
+    ``folds``: the located folds at the
     coarse resolution; ``wall_time_s``."""
     w = bs.results["window"]
     lo, hi = bs.prange
@@ -98,18 +100,23 @@ def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
                         for b in bs.summary()["branches"]],
            "wall_time_s": bs.metadata["wall_time_s"]}
     d0 = spreading.delta0
-    for side, key, wkey in (("open", "open_max", "open_max"),
-                            ("wrapped", "wrapped_min", "encapsulated_min"),
-                            ("deposition", "deposition_end", "open_branch_end")):
-        coarse, fine = w[wkey]["value"], w[wkey].get("value_refined")
+    ends = (("open", "open_max", w["open_max"]),
+            ("wrapped", "wrapped_min", w["encapsulated_min"]),
+            ("deposition", "deposition_end", w["open_branch_end"]),
+            ("spreading", "spreading_end", w["open_branch_end"].get("spreading")))
+    for side, key, end in ends:
+        if end is None:
+            continue
+        coarse, fine = end["value"], end.get("value_refined")
         v = fine if fine is not None else math.nan
         row[key] = v
         row[f"{key}_coarse"] = coarse if coarse is not None else math.nan
         row[f"{key}_we_sqrt"] = spreading.we_sqrt(v) if math.isfinite(v) else math.nan
-        how = w[wkey].get("how_refined") or w[wkey].get("how")
+        how = end.get("how_refined") or end.get("how")
         at_bound = math.isfinite(v) and (abs(v - lo) < 1e-9 or abs(v - hi) < 1e-9)
-        # the deposition's end value is row["deposition_end"]; how it ends, "deposition_how"
-        row["deposition_how" if side == "deposition" else f"{side}_end"] = \
+        # the deposition's and the spreading's end values are row["deposition_end"] and
+        # row["spreading_end"]; how they end, "deposition_how" and "spreading_how"
+        row[f"{side}_how" if side in ("deposition", "spreading") else f"{side}_end"] = \
             "scan_limit" if at_bound else how
         if coarse is None or fine is None:
             row[f"{side}_change"], row[f"{side}_settled"] = math.nan, False
@@ -117,6 +124,12 @@ def summarize(x, bs, spreading, tol=TOL_DELTA) -> dict:
         ch = abs(max(fine, d0) - max(coarse, d0))
         row[f"{side}_change"] = ch
         row[f"{side}_settled"] = bool(ch <= tol)
+    # where the spreading could not be followed to its end: open at least up to this
+    spr = w["open_branch_end"].get("spreading") or {}
+    up = spr.get("open_up_to_refined", spr.get("open_up_to"))
+    row["spreading_open_up_to"] = up if up is not None else math.nan
+    row["spreading_open_up_to_we_sqrt"] = spreading.we_sqrt(up) if up is not None \
+        else math.nan
     return row
 
 
@@ -154,14 +167,27 @@ def _draw_static(ax, rows, sp, w_min):
         # the legend shows the settled (filled) symbol; hollow ones are explained below
         ax.plot([], [], marker, color=color, ms=7, mec=color, mfc=color, mew=1.3, ls="-",
                 lw=1.0, label=lab.format(n=rows[0]["n"][-1]))
-    dep = [(max(r["deposition_end_we_sqrt"], w_min), r["x"], r["deposition_settled"])
-           for r in rows if math.isfinite(r.get("deposition_end_we_sqrt", math.nan))]
-    if dep:
-        ax.plot([p[0] for p in dep], [p[1] for p in dep], "k-", lw=1.2, alpha=0.8)
-        for i, (w, x, settled) in enumerate(dep):
-            ax.plot(w, x, "D", color="k", ms=5, mfc="k" if settled else "white",
-                    label="static prediction: the deposited open state is lost"
-                    if i == 0 else None)
+    for key, marker, color, lab in (
+            ("deposition", "D", "k", "static: the deposited open state is lost"),
+            ("spreading", "*", "tab:blue", "static prediction: a quasi-static spreading "
+             "stops being open")):
+        pts = [(max(r[f"{key}_end_we_sqrt"], w_min), r["x"], r[f"{key}_settled"])
+               for r in rows if math.isfinite(r.get(f"{key}_end_we_sqrt", math.nan))]
+        if not pts:
+            continue
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], "-", color=color, lw=1.2,
+                alpha=0.8)
+        for i, (w, x, settled) in enumerate(pts):
+            ax.plot(w, x, marker, color=color, ms=6 if marker == "D" else 9,
+                    mfc=color if settled else "white", label=lab if i == 0 else None)
+    # a spreading followed to no end: open at least up to its last end
+    low = [(max(r["spreading_open_up_to_we_sqrt"], w_min), r["x"]) for r in rows
+           if not math.isfinite(r.get("spreading_end_we_sqrt", math.nan))
+           and math.isfinite(r.get("spreading_open_up_to_we_sqrt", math.nan))]
+    for i, (w, x) in enumerate(low):
+        ax.plot(w, x, ">", color="tab:blue", ms=7, mfc="white",
+                label="spreading open at least to here (not followed further)"
+                if i == 0 else None)
     ax.plot([], [], "s", mfc="white", mec="0.3", ms=6,
             label="hollow: unsettled ($n$ = "
                   f"{rows[0]['n'][-2] if len(rows[0]['n']) > 1 else '-'} and {rows[0]['n'][-1]}"
@@ -254,7 +280,8 @@ def _write(out: Path, scene, rows, fast, xs, ns, fig3d) -> list[Path]:
                   "values": [r[f"{key}_coarse"], r[key]]}
                  for r in rows for side, key in (("open", "open_max"),
                                                  ("wrapped", "wrapped_min"),
-                                                 ("deposition", "deposition_end"))
+                                                 ("deposition", "deposition_end"),
+                                                 ("spreading", "spreading_end"))
                  # rows computed without the static prediction have no deposition end
                  if f"{side}_settled" in r and not r[f"{side}_settled"]]
     data = {

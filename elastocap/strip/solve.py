@@ -46,6 +46,8 @@ from elastocap.strip.model import (
 __all__ = [
     "DESCENT_COARSE_N",
     "PAIR_SLACK",
+    "PENALTY",
+    "STIFF_PENALTY",
     "Equilibrium",
     "contact_pairs_of",
     "R_REL",
@@ -95,8 +97,22 @@ _THICKNESS_STEPS = 16
 # the displacement): large enough for the descent to leave the saddle's neighbourhood at
 # once, small next to the distance to either minimum (~1-3 rad in the tail angles).
 _PUSH = 0.02
-#: Edges above which :func:`descend_coarse_to_fine` descends on half the edges first.
-DESCENT_COARSE_N = 160
+#: The descent's ground penalty stiffness k = PENALTY B / h^3 (:func:`minimize_energy`).
+#: The soft ground moves where a state loses stability: the mirror-symmetric open state
+#: (n = 60, drop mid-strip) is a minimum of the penalized energy up to 0.02 in Delta past
+#: the exact problem's loss of stability, so a descent pushed off it there comes back to
+#: it; with STIFF_PENALTY it leaves it from 0.005 past on (measured). PENALTY keeps the
+#: descent from afar short (x = 4, Delta = 1.1, n = 100: 57 trust iterations against 461
+#: at 1e3 B / h^3, the same polished state).
+PENALTY = 10.0
+STIFF_PENALTY = 100.0
+#: Edges above which :func:`descend_coarse_to_fine` descends on half the edges first. The
+#: direct descent's iterations grow with n (x = 3, Delta = 1.2, from the flat strip: 492
+#: at n = 429, past the 500 allowed at 572); up to here it is kept, so that the default
+#: resolutions (198 and 297 edges) seed as they do: from a coarser strip a seed can land on
+#: another minimum (x = 5, Delta = 1.4, 99 -> 198 edges: a third branch, the window
+#: unchanged).
+DESCENT_COARSE_N = 300
 
 
 def lagrangian_hessian(strip: DiscreteStrip, u, r, pairs=None, mu=None) -> np.ndarray:
@@ -538,7 +554,8 @@ def _trust_step(lam, V, g, radius):
     return -(V @ w), pred, True
 
 
-def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equilibrium:
+def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500,
+                    penalty: float = PENALTY) -> Equilibrium:
     """A local minimum of the energy on z >= 0, reached by descent from ``u0``.
 
     With a thickness the descent runs without self-contact and its minimum is made a
@@ -548,7 +565,7 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
     Phase 1: trust-region Newton with the exact Hessian (the subproblem solved exactly on
     its eigen-decomposition, More & Sorensen 1983; radius 1 to start, as scipy's
     ``trust-exact``) on the energy plus an exterior penalty (k/2) sum min(z_k, 0)^2,
-    k = 10 B / h^3: the energy falls at every accepted step, so the descent cannot jump
+    k = ``penalty`` B / h^3: the energy falls at every accepted step, so the descent cannot jump
     over a barrier the way a Newton iteration can. Phase 2: the active-set Newton
     :func:`solve_equilibrium` from the penalty minimum, with the penetrating nodes as the
     initial contacts, makes it an exact KKT point.
@@ -556,12 +573,11 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500) -> Equili
     if strip.thickness > 0.0:
         # descent without self-contact (its penalty knows the ground only), then contact
         return with_self_contact(strip, minimize_energy(strip.with_(thickness=0.0), u0, tol,
-                                                         max_iter), tol)
+                                                         max_iter, penalty), tol)
     u = fix_gauge(strip, u0)
-    # 10 B / h^3: the penetration r / k is ~1e-5 (r ~ q h), close enough for the polish to
-    # start on the right contact set; measured at n = 100, x = 4, Delta = 1.1: 57 trust
-    # iterations against 461 with 1e3 B / h^3, same polished state
-    k = 10.0 * strip.B / strip.h**3
+    # PENALTY B / h^3: the penetration r / k is ~1e-5 (r ~ q h), close enough for the
+    # polish to start on the right contact set
+    k = float(penalty) * strip.B / strip.h**3
     E, g, H = _penalty(strip, u, k)
     radius = 1.0
     eig = None  # the eigen-decomposition of H, kept while a rejected step leaves H as it is
@@ -712,14 +728,19 @@ def descend_coarse_to_fine(strip: DiscreteStrip, start) -> Equilibrium:
     penalty stiffens as 1 / h^3 and the trust region shrinks at each node that reaches the
     ground; x = 3, Delta = 1.2, from the flat strip: 492 iterations at n = 429, 1207 at
     n = 572), and from a prolonged minimum they do not. ``start`` is a function of the
-    strip giving its starting u (as :func:`~elastocap.strip.model.flat_state`).
+    strip giving its starting u (as :func:`~elastocap.strip.model.flat_state`). Where
+    the coarser strip gives no minimum (its descent's polish can fail where the fine one's
+    does not: x = 4, Delta = 1.2 at n = 107), the descent runs from ``start`` here.
     """
     if strip.n > DESCENT_COARSE_N:
         coarse = strip.with_(n=strip.n // 2)
         eq = descend_coarse_to_fine(coarse, start)
-        if not eq.success:
-            return eq
-        return minimize_energy(strip, prolong(coarse, eq.u, strip))
+        if eq.success:
+            eq = minimize_energy(strip, prolong(coarse, eq.u, strip))
+            if eq.success:
+                return eq
+        # no minimum on the coarser strip (or none from its prolongation): the descent
+        # from the start on this one
     return minimize_energy(strip, start(strip))
 
 

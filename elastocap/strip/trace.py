@@ -123,6 +123,7 @@ from elastocap.strip.model import (
 )
 from elastocap.strip.solve import (
     R_REL,
+    STIFF_PENALTY,
     Equilibrium,
     lagrangian_hessian,
     minimize_energy,
@@ -1467,6 +1468,13 @@ def _join(problem: ContactProblem, halves) -> Branch:
                   "end_message": [down.message, up.message]})
 
 
+def _as_equilibrium(s: DiscreteStrip, u, r, held) -> Equilibrium:
+    """A traced point (state u, reactions r, held nodes) as an Equilibrium of ``s``."""
+    return Equilibrium(u=u, energy=s.energy(u), parts={}, reactions=np.maximum(r, 0.0),
+                       active=held, residual=0.0, iterations=0, status="converged",
+                       message="")
+
+
 def _stability_changes(problem: ContactProblem, P, V, I, SEG, segs, sps) -> list:
     """Unlocated branch points where the index changes with Delta going on the same way
     (no fold): another branch crosses there. Where the drop's centre is on a node or
@@ -1493,10 +1501,7 @@ def _stability_changes(problem: ContactProblem, P, V, I, SEG, segs, sps) -> list
         u, r = problem.split(V[j])
         held = np.zeros(problem.N, dtype=bool)
         held[segs[SEG[j]]["held"]] = True
-        eq = Equilibrium(u=u, energy=s.energy(u), parts={}, reactions=np.maximum(r, 0.0),
-                         active=held, residual=0.0, iterations=0, status="converged",
-                         message="")
-        mode = unstable_mode(s, eq)
+        mode = unstable_mode(s, _as_equilibrium(s, u, r, held))
         out.append(SpecialPoint("branch_point", j, float(P[j]), V[j].copy(), 0.0, False,
                                 "stability_change",
                                 {"kernel": np.concatenate([mode, np.zeros(problem.N)]),
@@ -1543,29 +1548,46 @@ PAST_CHANGE = 0.01
 PUSH = 0.05
 
 
+def _descend_pushed(s: DiscreteStrip, u, mode) -> list:
+    """The stable states (Equilibrium, or None where the descent does not reach one)
+    reached at the strip ``s``'s Delta by descent (with the stiff ground penalty,
+    :data:`~elastocap.strip.solve.STIFF_PENALTY`) from ``u`` pushed by +PUSH and -PUSH
+    (radians at its largest entry) along ``mode`` (u alone, one state, if mode is None)."""
+    N = s.size
+    u = np.asarray(u)[:N]
+    if mode is None:
+        starts = [u]
+    else:
+        k = np.asarray(mode)[:N]
+        push = PUSH * k / max(float(np.max(np.abs(k))), 1e-300)
+        starts = [u + push, u - push]
+    out = []
+    for u0 in starts:
+        # the stiff ground penalty: a soft one keeps the state just past a loss of
+        # stability as its minimum (STIFF_PENALTY)
+        eq = minimize_energy(s, u0, penalty=STIFF_PENALTY)
+        if eq.success and eq.index == 0:
+            eq = solve_equilibrium(s, eq.u, active=eq.active, tol=_POLISH, max_iter=10,
+                                   compute_index=False)
+        out.append(eq if eq.success and eq.index in (0, -1) else None)
+    return out
+
+
 def _descent_starts(strip: DiscreteStrip, prob: ContactProblem, branches, lo, hi):
     """(v, Delta, Delta of the change) of stable states reached by descent from the state
     at each unlocated branch point pushed both ways along its kernel, PAST_CHANGE of the
-    range to either side: the branches another branch meets where the index changes."""
+    range to either side (:func:`_descend_pushed`): the branches another branch meets where
+    the index changes."""
     out, d = [], PAST_CHANGE * (hi - lo)
-    N = prob.N
     for br in branches:
         for sp in br.special_points:
             if sp.kind != "branch_point" or sp.located or "kernel" not in sp.data:
                 continue
-            u, k = sp.u[:N], np.asarray(sp.data["kernel"])[:N]
-            push = PUSH * k / max(float(np.max(np.abs(k))), 1e-300)
             for pp in (sp.p - d, sp.p + d):
                 if not lo <= pp <= hi:
                     continue
-                s = strip.with_(delta=pp)
-                for sg in (1.0, -1.0):
-                    eq = minimize_energy(s, u + sg * push)
-                    if not (eq.success and eq.index == 0):
-                        continue
-                    eq = solve_equilibrium(s, eq.u, active=eq.active, tol=_POLISH,
-                                           max_iter=10, compute_index=False)
-                    if eq.success:
+                for eq in _descend_pushed(strip.with_(delta=pp), sp.u, sp.data["kernel"]):
+                    if eq is not None:
                         out.append((prob.join(eq.u, np.where(eq.active, eq.reactions, 0.0)),
                                     pp, float(sp.p)))
     return out
@@ -1758,11 +1780,24 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
     k = min(ks, key=lambda q: float(labels[q].rsplit("= ", 1)[1]))
     br = branches[k]
     s0 = int(br.metadata["start_index"])
-    o = br.observables
-    ok = ((br.stability == 0) & (o["encapsulated"] == 0.0) & (o["admissible"] == 1.0))[s0:]
-    d_all = br.p[s0:]
-    if not ok[0]:
+    out = _stretch_up(br, labels[k], s0, folds, kind_changes)
+    if out["value"] is None:
         return {"value": None, "how": "deposition not a stable open state", "label": labels[k]}
+    return out
+
+
+def _stretch_up(br, label, s0, folds, kind_changes) -> dict:
+    """The stretch of stable, open, admissible points of ``br`` from its point ``s0`` the
+    way Delta rises, and how it ends (:func:`open_branch_end`'s keys; ``stop``: the index
+    of the first point past it, or None). ``value`` None if the point s0 is not one."""
+    o = br.observables
+    mask = (br.stability == 0) & (o["encapsulated"] == 0.0) & (o["admissible"] == 1.0)
+    # the way along the arrays in which Delta rises from s0
+    fwd = s0 + 1 < br.p.size and (br.p[s0 + 1] >= br.p[s0] or s0 == 0)
+    idx = np.arange(s0, br.p.size) if fwd else np.arange(s0, -1, -1)
+    ok, d_all = mask[idx], br.p[idx]
+    if not ok[0]:
+        return {"value": None, "how": None, "label": label, "stop": None, "step": 0}
     # the stretch a spreading follows: stable open points while Delta does not decrease
     # (where it turns back, the state stops existing: a fold, smooth or at an event)
     turn = np.flatnonzero(np.diff(d_all) < 0.0)
@@ -1775,11 +1810,12 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
     if turned:
         how = "turning point (not located)"
     elif stop == ok.size:
-        up = br.metadata.get("end_status", ["", "?"])[1]  # how the upward direction ended
-        how = "range" if up == "parameter_bound" else f"branch end ({up})"
-    elif br.stability[s0 + stop] != 0:
+        # how this direction of the branch ended
+        status = br.metadata.get("end_status", ["?", "?"])[1 if fwd else 0]
+        how = "range" if status == "parameter_bound" else f"branch end ({status})"
+    elif br.stability[idx[stop]] != 0:
         how = "stability lost"
-    elif o["encapsulated"][s0 + stop] == 1.0:
+    elif o["encapsulated"][idx[stop]] == 1.0:
         how = "kind change"
     else:
         how = "inadmissible"
@@ -1789,23 +1825,216 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
         # where Delta turns back, the fold lies at or beyond the highest traced point, its
         # index between the first point at that height (several segments may meet at one
         # Delta) and the first point past the turn
-        first = s0 + int(np.argmax(d_all[:stop]))
+        first, last = int(idx[int(np.argmax(d_all[:stop]))]), int(idx[stop])
+        i_lo, i_hi = (first - 1, last) if fwd else (last - 1, first)
         fa, fb = (end, math.inf) if turned else (a, b)
         for f in folds:
-            if f["branch"] == labels[k] and f["index"] >= s0 and \
+            on_side = f["index"] >= s0 if fwd else f["index"] <= s0 + 1
+            if f["branch"] == label and on_side and \
                     fa - 1e-9 <= f["value"] <= fb + 1e-9 and \
-                    (not turned or first - 1 <= f["index"] <= s0 + stop):
+                    (not turned or i_lo <= f["index"] <= i_hi):
                 end, how, change = f["value"], f"{f['kind']} fold", f["stability_change"]
                 break
         # a kind change lies between the last stable open point and the next one
         for c in kind_changes:
-            if c["branch"] == labels[k] and a - 1e-9 <= c["value"] <= b + 1e-9:
+            if c["branch"] == label and a - 1e-9 <= c["value"] <= b + 1e-9:
                 end, how, change = c["value"], "kind change", None
     # a fold whose index does not change (0 on both sides): the branch turns back at an
     # active-set event with the open state stable on both sides; a spreading there jumps
     # to whatever state lies beyond, which this end does not say
-    return {"value": end, "how": how, "label": labels[k], "stability_change": change,
-            "stable_both_sides": bool(change is not None and list(change) == [0, 0])}
+    return {"value": end, "how": how, "label": label, "stability_change": change,
+            "stable_both_sides": bool(change is not None and list(change) == [0, 0]),
+            "stop": int(idx[stop]) if stop < ok.size else None, "step": 1 if fwd else -1}
+
+
+#: Jumps a spreading is followed through past the deposited state's end (:func:`_past_loss`).
+MAX_JUMPS = 8
+
+
+def _jump(strip: DiscreteStrip, br, end: dict, pp: float, sign: int | None) -> list:
+    """The stable states a spreading can land on at Delta ``pp`` past ``end`` (a stretch of
+    ``br`` ending at a fold, a turning point or a loss of stability): [(push, Equilibrium
+    or None)]. After a fold, the descent from the last stable state; where that does not
+    reach a stable state (it can stay on a saddle it cannot leave by symmetry), and after
+    a loss of stability, the descents from the first unstable point past the end pushed
+    along its unstable mode: both ways (push +1, -1) if ``sign`` is None, else that way."""
+    N = strip.size
+    j, step = int(end["stop"]), int(end["step"])
+    s = strip.with_(delta=pp)
+    if end["how"] != "stability lost":
+        eq = minimize_energy(s, br.u[j - step][:N], penalty=STIFF_PENALTY)
+        if eq.success and eq.index == 0:
+            eq = solve_equilibrium(s, eq.u, active=eq.active, tol=_POLISH, max_iter=10,
+                                   compute_index=False)
+            return [(0, eq if eq.success else None)]
+        if not eq.success and eq.message.startswith("the descent stopped at max_iter"):
+            # the descent does not come to rest (a push along a mode does not help here)
+            return [(0, None)]
+    # the first unstable point past the end (an event point is doubled: its first copy
+    # can carry the index of the segment before)
+    jj = next((q for q in range(j, j + 3 * step, step)
+               if 0 <= q < br.p.size and br.stability[q] >= 1), None)
+    if jj is None:
+        return [(0, None)]
+    held = next(h for sl, h in segments_of(br) if sl.start <= jj < sl.stop)
+    u, r = ContactProblem(strip).split(br.u[jj])
+    sj = strip.with_(delta=float(br.p[jj]))
+    mode = unstable_mode(sj, _as_equilibrium(sj, u, r, held))
+    # orient the mode: +1 is the way its largest entry is positive
+    mode = mode * math.copysign(1.0, mode[int(np.argmax(np.abs(mode)))])
+    pushed = _descend_pushed(s, u, mode)
+    out = list(zip((1, -1), pushed, strict=True))
+    return out if sign is None else [q for q in out if q[0] == sign]
+
+
+def _spreading(end: dict) -> dict:
+    """Where a quasi-static spreading from the deposition stops being open: ``value``
+    (None: open to the range's end, or not decided) and ``how``; ``open_up_to``: the last
+    end it was followed to (a lower bound where ``value`` is None). From ``past_loss`` where
+    the deposited state's stretch ends by a fold or a loss of stability; else the
+    stretch's own end where its state turns encapsulated or crosses itself."""
+    past, how = end.get("past_loss"), end.get("how") or ""
+    if past is not None:
+        return {"value": past["value"], "how": past["how"],
+                "open_up_to": past["open_up_to"]}
+    if how in ("kind change", "inadmissible"):
+        return {"value": end["value"], "how": how, "open_up_to": end["value"]}
+    return {"value": None, "how": how or "no deposition", "open_up_to": end.get("value")}
+
+
+def _trace_landing(strip: DiscreteStrip, eq: Equilibrium, p: float, lo: float, hi: float,
+                   label: str, branches, labels, folds, kind_changes):
+    """The branch through the stable state ``eq`` at Delta ``p``
+    (:func:`continue_contact_branch`), appended to ``branches`` and ``labels``, its folds
+    and kind changes to ``folds`` (kept sorted) and ``kind_changes``; (branch, index of
+    eq's point), or None if it could not be traced."""
+    prob = ContactProblem(strip)
+    v = prob.join(eq.u, np.where(eq.active, eq.reactions, 0.0))
+    cont = ContinuationSettings(**{**DEFAULTS, "max_steps": _MAX_STEPS, "p_min": lo,
+                                   "p_max": hi})
+    br = continue_contact_branch(prob, v, p, cont)
+    if br.u is None or len(br) == 0:
+        return None
+    branches.append(br)
+    labels.append(label)
+    folds.extend(_fold_list(strip, [br], [label]))
+    folds.sort(key=lambda f: f["value"])
+    kind_changes.extend(_kind_changes(strip, [br], [label]))
+    return br, int(br.metadata["start_index"])
+
+
+def _past_loss(strip: DiscreteStrip, branches, labels, folds, kind_changes, end: dict,
+               lo: float, hi: float) -> dict | None:
+    """Where a quasi-static spreading goes after the deposited state stops existing or
+    being stable, up to where it is no longer open (``end``: :func:`_open_end`, ending by
+    a fold, a turning point or ``stability lost``; None for the other ends, where the
+    state turns encapsulated, crosses itself or the branch ends).
+
+    At each end the strip jumps: the stable state it lands on is found by descent at
+    Delta PAST_CHANGE of the range above the end (:func:`_jump`), and the traced branch
+    through it (:func:`solved_crossings`, the same state to 1e-7; traced then, and added
+    to ``branches``, ``labels``, ``folds`` and ``kind_changes``, if the search did not
+    reach it: :func:`_trace_landing`) is followed up in Delta as the deposition's was
+    (:func:`_stretch_up`), to its own end; and so on, up to MAX_JUMPS. Where a mirror-symmetric state loses stability the two tilts are followed
+    apart (``sides``, push +1 and -1; later jumps keep the side's way).
+
+    Returns ``{"value", "how", "sides", "open_up_to"}``. Each side: ``push``, ``jumps``
+    (``from``: the end's Delta, ``how`` it ended, ``landing``: Delta of the descent,
+    ``to``: the branch landed on, or what happened instead), ``open_up_to`` (the last end
+    it was followed to) and ``value``: the Delta from which it lands on an encapsulated
+    or a self-crossing state (``how`` "jump to an encapsulated state", "jump to an
+    inadmissible state"), or where its open state turns encapsulated or crosses itself
+    (``kind change``, ``inadmissible``); None if it stays open to the range's end
+    (``how`` "range") or could not be followed (``how`` says why: e.g. the descent past
+    an end does not come to rest). ``value``: the smallest side's value, None if a side
+    is None; ``open_up_to``: the smallest side's.
+    """
+    how0 = end.get("how") or ""
+    if end.get("stop") is None or not (how0 == "stability lost" or how0.endswith("fold")
+                                       or how0.startswith("turning point")):
+        return None
+    d = PAST_CHANGE * (hi - lo)
+    index_of = {id(b): q for q, b in enumerate(branches)}
+    todo = [(None, end, [])]
+    sides = []
+    while todo:
+        sign, cur, jumps = todo.pop(0)
+        side = None
+        for _ in range(MAX_JUMPS + 1):
+            how = cur.get("how") or ""
+            if not (how == "stability lost" or how.endswith("fold")
+                    or how.startswith("turning point")):
+                # a stretch ending where its open state turns encapsulated or crosses
+                # itself, or at the range's (or branch's) end
+                side = {"value": None if how == "range" or how.startswith("branch end")
+                        else cur["value"], "how": how}
+                break
+            if len(jumps) == MAX_JUMPS:
+                side = {"value": None, "how": f"not followed past {MAX_JUMPS} jumps"}
+                break
+            pp = cur["value"] + d
+            if pp > hi:
+                side = {"value": None, "how": "range (the last end lies within "
+                        "PAST_CHANGE of the range's end)"}
+                break
+            br = branches[labels.index(cur["label"])]
+            landed = _jump(strip, br, cur, pp, sign)
+            if sign is None and len(landed) == 2:
+                # the two tilts of a symmetric state: each followed on its own
+                for push, _eq in landed[1:]:
+                    todo.append((push, cur, list(jumps)))
+                sign = landed[0][0]
+            eq = landed[0][1]
+            jump = {"from": cur["value"], "how": how, "landing": pp}
+            jumps.append(jump)
+            s = strip.with_(delta=pp)
+            if eq is None:
+                jump["to"] = "no stable state (the descent failed)"
+                side = {"value": None, "how": "not followed: the descent failed"}
+                break
+            if is_encapsulated(s, eq.u):
+                jump["to"] = "encapsulated"
+                side = {"value": cur["value"], "how": "jump to an encapsulated state"}
+                break
+            if point_measures(s, eq.u)["admissible"] != 1.0:
+                jump["to"] = "a state that crosses itself (inadmissible)"
+                side = {"value": cur["value"], "how": "jump to an inadmissible state"}
+                break
+            hit = next(((b2, j2) for b2, j2, e2 in solved_crossings(s, branches)
+                        if e2.success and np.max(np.abs(e2.u - eq.u)) < 1e-7), None)
+            if hit is None:
+                # a state the search did not reach: its branch is traced now and joins the
+                # branch set (with its folds and kind changes)
+                hit = _trace_landing(strip, eq, pp, lo, hi, f"spreading past Delta = "
+                                     f"{cur['value']:.6g}", branches, labels, folds,
+                                     kind_changes)
+                if hit is None:
+                    jump["to"] = "an open state whose branch could not be traced"
+                    side = {"value": None, "how": "not followed: the branch of the state "
+                            "reached could not be traced"}
+                    break
+                index_of[id(hit[0])] = len(branches) - 1
+            b2, j2 = hit
+            lab2 = labels[index_of[id(b2)]]
+            jump["to"] = lab2
+            nxt = _stretch_up(b2, lab2, j2, folds, kind_changes)
+            if nxt["value"] is None:
+                side = {"value": None, "how": "not followed: the state reached is not "
+                        f"stable and open on its branch (index {int(b2.stability[j2])})"}
+                break
+            cur = nxt
+        # the spreading is open up to the last end it was followed to
+        up_to = max([cur["value"], *(q["from"] for q in jumps)])
+        sides.append({"push": sign if sign is not None else 0, "jumps": jumps,
+                      "open_up_to": up_to, **side})
+    vals = [q["value"] for q in sides]
+    if all(v is not None for v in vals):
+        first = min(sides, key=lambda q: q["value"])
+        value, how = first["value"], first["how"]
+    else:
+        value, how = None, "; ".join(q["how"] for q in sides if q["value"] is None)
+    return {"value": value, "how": how, "sides": sides,
+            "open_up_to": min(q["open_up_to"] for q in sides)}
 
 
 def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
@@ -1816,7 +2045,9 @@ def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
     only, starts = set(), []
     cprob = coarse["problem"]
     fine = ContactProblem(strip)
-    for o, br in zip(coarse["search"].origins, coarse["branches"], strict=True):
+    # the search's branches (those the spreading traced after it follow from its starts)
+    origins = coarse["search"].origins
+    for o, br in zip(origins, coarse["branches"][:len(origins)], strict=True):
         if o["how"] == "seed":
             only.add((o["p"], o["seed"]))
             continue
@@ -1832,10 +2063,12 @@ def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
     return {"only": only, "starts": starts}
 
 
-def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=None) -> dict:
-    """Search, then the special points, kind changes, window and open branch's end.
-    ``follow`` (another resolution's analysis): trace the same branches, seeded as there,
-    instead of every seed (:func:`_follow`)."""
+def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=None,
+             spreading: bool = False) -> dict:
+    """Search, then the special points, kind changes, window and open branch's end (with
+    ``spreading``, the spreading past it: :func:`_past_loss`). ``follow`` (another
+    resolution's analysis): trace the same branches, seeded as there, instead of every
+    seed (:func:`_follow`)."""
     kw = {}
     if follow is not None:
         # following, not searching: no neighbour seeds and one round
@@ -1845,11 +2078,19 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
                                                     descend=follow is None, **kw)
     folds = _fold_list(strip, branches, labels)
     kinds = _kind_changes(strip, branches, labels)
+    end = _open_end(branches, labels, folds, kinds)
+    # the spreading past the deposition's end may trace branches the search did not reach
+    branches, labels = list(branches), list(labels)
+    if spreading:
+        end["past_loss"] = _past_loss(strip, branches, labels, folds, kinds, end, lo, hi)
+        end["spreading"] = _spreading(end)
+    end.pop("stop", None)
+    end.pop("step", None)
     window = _window(branches, folds, kinds)
     return {"branches": branches, "labels": labels, "search": res, "folds": folds,
             "problem": ContactProblem(strip),
             "kind_changes": kinds, "window": window, "events": _event_list(branches, labels),
-            "open_branch_end": _open_end(branches, labels, folds, kinds)}
+            "open_branch_end": end}
 
 
 def _nearest(value, candidates):
@@ -1859,7 +2100,8 @@ def _nearest(value, candidates):
 
 def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", prange=None,
                            n: int | None = None, refine: bool = True,
-                           progress=None, n_refined: int | None = None) -> BranchSet:
+                           progress=None, n_refined: int | None = None,
+                           spreading: bool = False) -> BranchSet:
     """Search, trace and classify the branches of a strip-on-the-ground scene in Delta.
 
     Parameters
@@ -1881,6 +2123,11 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         Called with a line after each branch is traced.
     n_refined : int, optional
         Edges of the refined run (default ``round(REFINE * n)``).
+    spreading : bool
+        Also follow a quasi-static spreading past the deposited state's end, through its
+        jumps, to where it stops being open (``open_branch_end``'s ``past_loss`` and
+        ``spreading``: :func:`open_branch_end`); it can trace branches the search did not
+        reach. Off by default: its descents cost about 8 s at x = 5 (198 + 297 edges).
 
     Returns
     -------
@@ -1895,18 +2142,25 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
     strip = discrete_strip_for(scene, n)
     n_fine = None
     with threadpool_limits(limits=1, user_api="blas"):
-        a = _analyse(strip, lo, hi, progress)
+        a = _analyse(strip, lo, hi, progress, spreading=spreading)
         window, end = a["window"], {**a["open_branch_end"], "error_estimate": None}
         if refine:
             n_fine = int(n_refined) if n_refined is not None else int(round(REFINE * strip.n))
             if n_fine == strip.n:
                 raise ValueError(f"n_refined: got {n_fine}; expected it to differ from n = "
                                  f"{strip.n}")
-            f = _analyse(strip.with_(n=n_fine), lo, hi, progress, follow=a)
+            f = _analyse(strip.with_(n=n_fine), lo, hi, progress, follow=a,
+                         spreading=spreading)
             fend = f["open_branch_end"]
             end["value_refined"], end["how_refined"] = fend["value"], fend["how"]
             if end["value"] is not None and fend["value"] is not None:
                 end["error_estimate"] = abs(end["value"] - fend["value"])
+            if spreading:
+                sp, fsp = end["spreading"], fend["spreading"]
+                sp["value_refined"], sp["how_refined"] = fsp["value"], fsp["how"]
+                sp["open_up_to_refined"] = fsp["open_up_to"]
+                sp["error_estimate"] = (abs(sp["value"] - fsp["value"]) if sp["value"]
+                                        is not None and fsp["value"] is not None else None)
             for fo in a["folds"]:
                 fo["error_estimate"] = _nearest(fo["value"], [
                     g["value"] for g in f["folds"] if g["kind"] == fo["kind"]
@@ -1966,8 +2220,25 @@ def open_branch_end(bs: BranchSet) -> dict:
     event with the open state stable on both sides (the branch turns back with no change
     of stability, so where a spreading goes beyond it is not decided by this branch).
     ``value`` is None when there is no such branch (``how`` says why).
+
+    Where the stretch ends by ``stability lost`` (no fold: the mirror-symmetric open state
+    tilts), ``past_loss`` says where the spreading goes on (:func:`_past_loss`): the
+    stable state a descent past the change reaches on either side, followed up its
+    branch; ``past_loss["value"]`` is where the first of the two stops being stable and
+    open. ``spreading`` (``value``, ``how``; with the refined run's ``value_refined`` and
+    ``error_estimate``) is where the spreading stops being open: ``past_loss``'s value, or
+    the stretch's own end where its state turns encapsulated or crosses itself. A branch
+    set from :func:`trace_contact_branches` returns the end it computed (with
+    ``past_loss``, ``spreading`` and the refined run's values); otherwise the end is found
+    again from the branches (without them: they need the strip).
     """
-    return _open_end(bs.branches, bs.labels, bs.folds, bs.results.get("kind_changes", []))
+    stored = bs.results.get("window", {}).get("open_branch_end")
+    if stored is not None:
+        return stored
+    out = _open_end(bs.branches, bs.labels, bs.folds, bs.results.get("kind_changes", []))
+    out.pop("stop", None)
+    out.pop("step", None)
+    return out
 
 
 def solved_crossings(strip: DiscreteStrip, branches):
@@ -2029,6 +2300,17 @@ def report_lines(bs: BranchSet) -> list[str]:
         v = w.get(key)
         if v and v["value"] is not None:
             out.append(f"  {name:32s} Delta {v['value']:.9f} {err(v['error_estimate'])}")
+    sp = (w.get("open_branch_end") or {}).get("spreading")
+    if sp:
+        head = "a spreading stops being open at"
+        if sp["value"] is not None:
+            out.append(f"  {head:32s} Delta {sp['value']:.9f} "
+                       f"{err(sp.get('error_estimate'))} ({sp['how']})")
+        else:
+            up = sp.get("open_up_to")
+            out.append(f"  {head:32s} not found"
+                       + (f" (open at least to Delta {up:.9f})" if up is not None else "")
+                       + f": {sp['how']}")
     line = f"  bistable at n = {n}: {w.get('bistable')}"
     if w.get("width") is not None:
         line += f" (width {w['width']:+.2e})"

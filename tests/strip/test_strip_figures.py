@@ -29,7 +29,7 @@ def test_figure_fast_maps_delta_to_we_through_the_spreading_law(fast_figure):
     sp = d["spreading"]
     # fig3-strip: R = 0.4429, Delta0 = 0.5943, c = 0.32 (scene [spreading])
     assert (sp["drop_radius"], sp["delta0"], sp["coefficient"]) == (0.4429, 0.5943, 0.32)
-    for key in ("open_max", "wrapped_min", "deposition_end"):
+    for key in ("open_max", "wrapped_min", "deposition_end", "spreading_end"):
         expect = (row[key] - 0.5943) / (2.0 * 0.4429 * 0.32)
         assert row[f"{key}_we_sqrt"] == pytest.approx(expect, rel=1e-12)
     # fast mode is x = 1.5 at n = 50 and 100 (all branches traced, ends located). At
@@ -39,6 +39,9 @@ def test_figure_fast_maps_delta_to_we_through_the_spreading_law(fast_figure):
     # necessary check only
     assert row["open_end"] == row["wrapped_end"] == "kind_change"
     assert row["deposition_how"] == "kind change"
+    # a kind change is where the spreading stops being open too (no jump)
+    assert row["spreading_how"] == "kind change"
+    assert row["spreading_end"] == row["deposition_end"]
     assert row["open_max"] == row["wrapped_min"]
     assert row["open_change"] < 0.01 and row["open_settled"]
     assert math.isfinite(row["wrapped_min_we_sqrt"])

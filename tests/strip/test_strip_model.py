@@ -316,6 +316,23 @@ def test_coarse_to_fine_descent_reaches_the_direct_descents_minimum(monkeypatch,
         assert abs(eq.energy - direct.energy) < 1e-10 * abs(direct.energy)
 
 
+def test_coarse_to_fine_descent_falls_back_where_the_coarse_strip_has_no_minimum(
+        monkeypatch):
+    # x = 4, Delta = 1.2: the descent from the flat strip fails on 107 edges (its polish
+    # does not converge) and succeeds on 214: the state is this strip's, as the direct
+    # descent gives it
+    from elastocap.strip import solve
+
+    monkeypatch.setattr(solve, "DESCENT_COARSE_N", 110)
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": 4.0, "drop.wetted_length": 1.2})
+    S = discrete_strip_for(sc, 214)
+    assert not minimize_energy(S.with_(n=107), flat_state(S.with_(n=107))).success
+    direct = minimize_energy(S, flat_state(S))
+    eq = solve.open_state(S)
+    assert eq.success and eq.u.shape == (S.n + 1,)
+    assert np.max(np.abs(eq.u - direct.u)) < 1e-8
+
+
 def test_a_descent_cut_short_says_so():
     sc = load_scene("fig3-strip", {"drop.distance_from_end": 3.0, "drop.wetted_length": 1.2})
     S = discrete_strip_for(sc, 100)

@@ -19,7 +19,13 @@ from elastocap.cli import main
 from elastocap.scene import SceneError, load_scene
 from elastocap.strip.barrier import barrier, barrier_graph, lowest_barriers
 from elastocap.strip.model import DiscreteStrip, discrete_strip_for, is_encapsulated
-from elastocap.strip.solve import minimize_energy, open_state, solve_equilibrium, wrapped_state
+from elastocap.strip.solve import (
+    minimize_energy,
+    open_state,
+    solve_equilibrium,
+    stability,
+    wrapped_state,
+)
 from elastocap.strip.trace import (
     CHORD_STOP,
     DEFAULTS,
@@ -549,3 +555,52 @@ def test_cli_branches_at_a_mirror_symmetric_grid(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "also start branches not traced" in out
     assert "Delta 1.233389717" in out
+
+
+def test_the_spreading_past_the_deposited_states_end_follows_each_jump():
+    # The drop mid-strip on a grid with its centre on node 30 (n = 60, mirror-symmetric):
+    # the deposited open state is lost at Delta = 1.2278 (a contact fold where it loses
+    # stability). The spreading jumps (descent PAST_CHANGE of the range beyond each end),
+    # follows the state it lands on, and so on. Measured: onto the tilted state (a smooth
+    # fold at 1.23784, or a loss of stability at 1.23723 on the other range), then to an
+    # open state that lasts to the contact fold at 1.7035424, past which the descent
+    # passes the strip through itself.
+    n, c = 60, 30
+    x = L - c * L / n
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": x, "numerics.n_edges": n})
+    ends = []
+    for prange in ((1.0, 2.0), (1.0, 1.8)):
+        bs = trace_contact_branches(sc, prange=prange, refine=False, spreading=True)
+        end = open_branch_end(bs)
+        assert end["how"] == "contact fold" and abs(end["value"] - 1.2277967) < 1e-6
+        past = end["past_loss"]
+        # every side (the two tilts where a symmetric state loses stability) ends at the
+        # same Delta: the mirror images of each other, by separate descents and branches
+        assert past["sides"] and all(sd["value"] == pytest.approx(past["value"], abs=1e-9)
+                                     for sd in past["sides"])
+        assert past["how"] == "jump to an inadmissible state"
+        last = past["sides"][0]["jumps"][-1]
+        assert last["to"].startswith("a state that crosses itself")
+        # the value is a located fold of the branch set, the end of a stable stretch
+        f = min(bs.folds, key=lambda f: abs(f["value"] - past["value"]))
+        assert abs(f["value"] - past["value"]) < 1e-12 and 0 in f["stability_change"]
+        # independent of the continuation's index: just below the end, that branch's
+        # open state is stable (the inertia of the projected Hessian, solve.stability);
+        # just past it, the active-set Newton method from it finds no stable state near it
+        S, states = _states_at(bs, past["value"] - 1e-3)
+        br = next(b for b, lab in zip(bs.branches, bs.labels, strict=True)
+                  if lab == f["branch"])
+        eq = next(e for idx, e in states if idx == 0 and not is_encapsulated(S, e.u)
+                  and np.max(np.abs(e.u - br.u[f["index"]][: S.size])) < 0.05)
+        assert stability(S, eq)[0] == 0
+        beyond = S.with_(delta=past["value"] + 2e-3)
+        e2 = solve_equilibrium(beyond, eq.u, active=eq.active, tol=1e-11)
+        assert not (e2.success and e2.index == 0 and np.max(np.abs(e2.u - eq.u)) < 0.05)
+        ends.append(past["value"])
+        assert end["spreading"]["value"] == past["value"]
+    # the landing offset (PAST_CHANGE of the range: 0.01 and 0.008) does not move the end
+    assert ends[0] == pytest.approx(ends[1], abs=1e-9)
+    assert abs(ends[0] - 1.7035424) < 1e-6
+    # off by default: nothing computed
+    end = open_branch_end(trace_contact_branches(sc, prange=(1.0, 2.0), refine=False))
+    assert "past_loss" not in end and "spreading" not in end
