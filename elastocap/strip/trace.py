@@ -1780,20 +1780,23 @@ def _open_end(branches, labels, folds, kind_changes) -> dict:
     k = min(ks, key=lambda q: float(labels[q].rsplit("= ", 1)[1]))
     br = branches[k]
     s0 = int(br.metadata["start_index"])
-    out = _stretch_up(br, labels[k], s0, folds, kind_changes)
+    # the branch's upward chain starts at its start point (continue_contact_branch)
+    out = _stretch_up(br, labels[k], s0, folds, kind_changes, forward=True)
     if out["value"] is None:
         return {"value": None, "how": "deposition not a stable open state", "label": labels[k]}
     return out
 
 
-def _stretch_up(br, label, s0, folds, kind_changes) -> dict:
+def _stretch_up(br, label, s0, folds, kind_changes, forward=None) -> dict:
     """The stretch of stable, open, admissible points of ``br`` from its point ``s0`` the
-    way Delta rises, and how it ends (:func:`open_branch_end`'s keys; ``stop``: the index
-    of the first point past it, or None). ``value`` None if the point s0 is not one."""
+    way Delta rises (along the arrays if ``forward``, against them if not; by default the
+    way Delta rises from s0), and how it ends (:func:`open_branch_end`'s keys; ``stop``:
+    the index of the first point past it, or None; ``step``: +1 or -1, the way walked).
+    ``value`` None if the point s0 is not one."""
     o = br.observables
     mask = (br.stability == 0) & (o["encapsulated"] == 0.0) & (o["admissible"] == 1.0)
-    # the way along the arrays in which Delta rises from s0
-    fwd = s0 + 1 < br.p.size and (br.p[s0 + 1] >= br.p[s0] or s0 == 0)
+    fwd = forward if forward is not None else (
+        s0 + 1 < br.p.size and (br.p[s0 + 1] >= br.p[s0] or s0 == 0))
     idx = np.arange(s0, br.p.size) if fwd else np.arange(s0, -1, -1)
     ok, d_all = mask[idx], br.p[idx]
     if not ok[0]:
