@@ -1857,7 +1857,7 @@ MAX_JUMPS = 8
 def _jump(strip: DiscreteStrip, br, end: dict, pp: float, sign: int | None) -> list:
     """The stable states a spreading can land on at Delta ``pp`` past ``end`` (a stretch of
     ``br`` ending at a fold, a turning point or a loss of stability): [(push, Equilibrium
-    or None)]. After a fold, the descent from the last stable state; where that does not
+    or None, why None)]. After a fold, the descent from the last stable state; where that does not
     reach a stable state (it can stay on a saddle it cannot leave by symmetry), and after
     a loss of stability, the descents from the first unstable point past the end pushed
     along its unstable mode: both ways (push +1, -1) if ``sign`` is None, else that way."""
@@ -1869,16 +1869,20 @@ def _jump(strip: DiscreteStrip, br, end: dict, pp: float, sign: int | None) -> l
         if eq.success and eq.index == 0:
             eq = solve_equilibrium(s, eq.u, active=eq.active, tol=_POLISH, max_iter=10,
                                    compute_index=False)
-            return [(0, eq if eq.success else None)]
+            return [(0, eq, None) if eq.success else
+                    (0, None, f"the polish of the descent's minimum failed: {eq.message}")]
         if not eq.success and eq.message.startswith("the descent stopped at max_iter"):
-            # the descent does not come to rest (a push along a mode does not help here)
-            return [(0, None)]
+            # the descent does not come to rest (a push along a mode does not help here:
+            # measured at x = 5, n = 143 past the contact fold at 1.6684, the strip stays
+            # open and admissible while its energy creeps down through contact changes)
+            return [(0, None, "the descent did not come to rest within its max_iter "
+                     "trust-region iterations")]
     # the first unstable point past the end (an event point is doubled: its first copy
     # can carry the index of the segment before)
     jj = next((q for q in range(j, j + 3 * step, step)
                if 0 <= q < br.p.size and br.stability[q] >= 1), None)
     if jj is None:
-        return [(0, None)]
+        return [(0, None, "no stable state reached, and no unstable point to push from")]
     held = next(h for sl, h in segments_of(br) if sl.start <= jj < sl.stop)
     u, r = ContactProblem(strip).split(br.u[jj])
     sj = strip.with_(delta=float(br.p[jj]))
@@ -1886,7 +1890,8 @@ def _jump(strip: DiscreteStrip, br, end: dict, pp: float, sign: int | None) -> l
     # orient the mode: +1 is the way its largest entry is positive
     mode = mode * math.copysign(1.0, mode[int(np.argmax(np.abs(mode)))])
     pushed = _descend_pushed(s, u, mode)
-    out = list(zip((1, -1), pushed, strict=True))
+    out = [(sg, eq, None if eq is not None else "the descent pushed along the unstable "
+            "mode reached no stable state") for sg, eq in zip((1, -1), pushed, strict=True)]
     return out if sign is None else [q for q in out if q[0] == sign]
 
 
@@ -1984,16 +1989,16 @@ def _past_loss(strip: DiscreteStrip, branches, labels, folds, kind_changes, end:
             landed = _jump(strip, br, cur, pp, sign)
             if sign is None and len(landed) == 2:
                 # the two tilts of a symmetric state: each followed on its own
-                for push, _eq in landed[1:]:
+                for push, _eq, _why in landed[1:]:
                     todo.append((push, cur, list(jumps)))
                 sign = landed[0][0]
-            eq = landed[0][1]
+            _push, eq, why = landed[0]
             jump = {"from": cur["value"], "how": how, "landing": pp}
             jumps.append(jump)
             s = strip.with_(delta=pp)
             if eq is None:
-                jump["to"] = "no stable state (the descent failed)"
-                side = {"value": None, "how": "not followed: the descent failed"}
+                jump["to"] = f"no stable state ({why})"
+                side = {"value": None, "how": f"not followed: {why}"}
                 break
             if is_encapsulated(s, eq.u):
                 jump["to"] = "encapsulated"
