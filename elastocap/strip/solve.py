@@ -507,7 +507,7 @@ def _penalty(strip, u, k):
     pen = np.minimum(z, 0.0)
     neg = np.flatnonzero(pen < 0.0)
     if neg.size:
-        G = strip.constraint_jacobian(u)[neg]
+        G = strip.constraint_jacobian(u, neg)  # the rows of the penetrating nodes alone
         E += 0.5 * k * float(pen[neg] @ pen[neg])
         g = g + k * (G.T @ pen[neg])
         H = H + k * (G.T @ G)

@@ -283,6 +283,27 @@ def test_descent_keeps_the_decomposition_over_rejected_steps_bit_identical(monke
         assert kept < calls["n"]
 
 
+def test_with_delta_is_the_constructed_strip():
+    # a copy at another Delta (made without the constructor) equals the strip the
+    # constructor makes, shares the node arrays and refuses a drop off the strip alike
+    S = DiscreteStrip(60, L, 2.0, 0.6, 0.36, 40.0)
+    u = random_state(S)
+    S.derivatives(u)
+    C = S.with_(delta=0.8)
+    ref = DiscreteStrip(60, L, 2.0, 0.8, 0.36, 40.0)
+    assert C == ref and C.to_dict() == ref.to_dict()
+    assert C.s_nodes is S.s_nodes and C._load is S._load
+    for a, b in zip(C.derivatives(u), ref.derivatives(u)):
+        assert np.array_equal(a, b)
+    assert np.array_equal(C.gauge, ref.gauge)
+    for bad in (2 * (L - 2.0) + 0.1, 4.1, float("nan")):
+        with pytest.raises(ValueError) as e1:
+            S.with_(delta=bad)
+        with pytest.raises(ValueError) as e2:
+            DiscreteStrip(60, L, 2.0, bad, 0.36, 40.0)
+        assert str(e1.value) == str(e2.value)
+
+
 @pytest.mark.parametrize("x, delta", [(3.0, 1.2), (5.0, 0.9)])
 def test_coarse_to_fine_descent_reaches_the_direct_descents_minimum(monkeypatch, x, delta):
     # the descent from each seed on 50 and 100 edges first, then 200, lands on the minimum
@@ -484,3 +505,57 @@ def test_scene_default_resolution_and_bad_values_named():
         args = {**dict(n=100, L=14.3, x_end=2.0, delta=1.16, area=0.36, gamma=40.0), **kw}
         with pytest.raises(ValueError, match=rf"^{name}: got"):
             DiscreteStrip(**args)
+
+
+@pytest.mark.parametrize("n", [198, 297])
+def test_factorization_of_bordered_strip_matrices_against_numpy(n):
+    # continuation.factorize on the trace's bordered matrices (the fixed-set Jacobian of a
+    # flat strip held outside the drop, dF/dDelta, a random row: rows with one nonzero
+    # pivoted on before LAPACK), as they come and with rows and columns permuted at
+    # random (the single-nonzero rows and their columns then out of order): both solves
+    # against numpy.linalg.solve, the determinant's sign against numpy's slogdet
+    from continuation import factorize
+    from continuation._linalg import bordered
+
+    S = discrete_strip_for(load_scene("fig3-strip", {"drop.distance_from_end": 4.0}), n)
+    S = S.with_(delta=1.0)
+    s = S.s_nodes
+    held = (s < S.s1 - 0.3) | (s > S.s2 + 0.3)
+    prob, tools = active_set_problem(S, held)
+    u = flat_state(S)
+    v = tools["join"](u, np.where(held, 0.01, 0.0))
+    rng = np.random.default_rng(n)
+    M = bordered(prob.jacobian(v, 1.0), prob.dfdp(v, 1.0), rng.standard_normal(v.size),
+                 rng.standard_normal())
+    ones = int(np.count_nonzero(np.count_nonzero(M, axis=1) == 1))
+    assert ones > n // 3  # the pivoting on single rows is exercised
+    m = M.shape[0]
+    for A in [M] + [M[rng.permutation(m)][:, rng.permutation(m)] for _ in range(6)]:
+        f = factorize(A.copy())
+        b = rng.standard_normal(A.shape[0])
+        for trans, ref in ((False, np.linalg.solve(A, b)), (True, np.linalg.solve(A.T, b))):
+            assert np.linalg.norm(f.solve(b, trans=trans) - ref) <= 1e-10 * np.linalg.norm(ref)
+        assert f.det_sign() == int(np.linalg.slogdet(A)[0])
+
+
+@pytest.mark.parametrize("n", [40, 198])
+def test_held_residual_is_the_stationarity_rows_bit_for_bit(n):
+    # the fixed-set residual in one compiled pass against its numpy form: the stationarity
+    # rows with the reactions at the held nodes, then c times the heights of the first
+    # held node and the differences of consecutive held nodes (the same bits)
+    S = discrete_strip_for(load_scene("fig3-strip", {"drop.distance_from_end": 4.0}), n)
+    S = S.with_(delta=1.0)
+    rng = np.random.default_rng(n)
+    c = S.B / S.h**3
+    for seed in range(4):
+        u = random_state(S, seed, 0.2)
+        A = np.flatnonzero(rng.random(S.size) < (0.5, 0.0, 1.0, 0.1)[seed])
+        ra = rng.standard_normal(A.size)
+        r = np.zeros(S.size)
+        r[A] = ra
+        stat, zs = S.stationarity(u, r)
+        z = zs[A]
+        z[1:] -= zs[A[:-1]]
+        ref = np.concatenate([stat, c * z])
+        assert np.array_equal(S.held_residual(u, A, ra, c), ref)
+        assert np.max(np.abs(stat)) > 0.0 and (A.size == 0 or np.max(np.abs(z)) > 0.0)
