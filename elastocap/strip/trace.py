@@ -1595,6 +1595,11 @@ def _descent_starts(strip: DiscreteStrip, prob: ContactProblem, branches, lo, hi
     return out
 
 
+def _seed_grid(lo: float, hi: float) -> tuple:
+    """The Delta values of the search's seeds inside (lo, hi) (its midpoint if none)."""
+    return tuple(d for d in SEED_DELTAS if lo < d < hi) or (0.5 * (lo + hi),)
+
+
 def search_contact_branches(strip: DiscreteStrip, lo: float, hi: float, progress=None,
                             settings: SearchSettings = SEARCH, only=None, starts=(),
                             descend: bool = True):
@@ -1609,7 +1614,7 @@ def search_contact_branches(strip: DiscreteStrip, lo: float, hi: float, progress
     (:func:`_descent_starts`) and continue the search from the stable states reached
     (:meth:`continuation.BranchSearch.extend`). Returns (branches, labels, search result).
     """
-    grid = tuple(d for d in SEED_DELTAS if lo < d < hi) or (0.5 * (lo + hi),)
+    grid = _seed_grid(lo, hi)
     prob = ContactProblem(strip, grid, only)
     cont = ContinuationSettings(**{**DEFAULTS, "max_steps": _MAX_STEPS, "p_min": lo,
                                    "p_max": hi})
@@ -1774,19 +1779,74 @@ def _window(branches, folds=(), kind_changes=()) -> dict:
     }
 
 
-def _open_end(branches, labels, folds, kind_changes) -> dict:
-    """The stable open stretch traced up from the deposition at the lowest seed value."""
-    ks = [k for k, lab in enumerate(labels) if lab.startswith("deposition at")]
-    if not ks:
-        return {"value": None, "how": "no deposition branch"}
-    k = min(ks, key=lambda q: float(labels[q].rsplit("= ", 1)[1]))
-    br = branches[k]
-    s0 = int(br.metadata["start_index"])
-    # the branch's upward chain starts at its start point (continue_contact_branch)
-    out = _stretch_up(br, labels[k], s0, folds, kind_changes, forward=True)
+def _open_end(branches, labels, folds, kind_changes, at=None) -> dict:
+    """The stable open stretch traced up from the deposition at the lowest seed value:
+    from the point ``at`` = (branch index, point index) where given
+    (:func:`_deposition_point`), else from the start of the branch labelled as that
+    deposition."""
+    if at is not None:
+        k, s0 = at
+        forward = None  # the way Delta rises from that point
+    else:
+        ks = [k for k, lab in enumerate(labels) if lab.startswith("deposition at")]
+        if not ks:
+            return {"value": None, "how": "no deposition branch"}
+        k = min(ks, key=lambda q: float(labels[q].rsplit("= ", 1)[1]))
+        # the branch's upward chain starts at its start point (continue_contact_branch)
+        s0, forward = int(branches[k].metadata["start_index"]), True
+    out = _stretch_up(branches[k], labels[k], s0, folds, kind_changes, forward=forward)
     if out["value"] is None:
         return {"value": None, "how": "deposition not a stable open state", "label": labels[k]}
     return out
+
+
+def _locate_stability_loss(strip: DiscreteStrip, br, i: int, j: int, tol: float = 1e-10):
+    """The Delta where ``br``'s stability index leaves 0 between its traced points ``i``
+    (index 0) and ``j`` (index > 0) of one fixed-contact segment, by bisection: at each
+    midpoint Newton at the segment's contact set from the mean of the bracket's states, and the
+    index of the state found (:func:`~elastocap.strip.solve.solve_equilibrium`). Returns
+    (Delta, [a, b]) with the index 0 at a and > 0 at b; the bisection stops early where
+    Newton does not converge or changes the contact set (next to the singular point:
+    measured at x = 5, n = 286, within 2e-5 of it), and the bracket says how far it got.
+    None if the points are on different segments (the index changes at a contact event,
+    which is then located already)."""
+    segs = [(sl, h) for sl, h in segments_of(br) if sl.start <= min(i, j) and
+            max(i, j) < sl.stop]
+    if not segs:
+        return None
+    held = segs[0][1]
+    N = strip.size
+    a, b, ua, ub = float(br.p[i]), float(br.p[j]), br.u[i][:N], br.u[j][:N]
+    while abs(b - a) > tol * (1.0 + abs(a)):
+        m = 0.5 * (a + b)
+        # Newton from the midpoint of the bracket's two states
+        eq = solve_equilibrium(strip.with_(delta=m), 0.5 * (ua + ub), active=held,
+                               tol=1e-11, max_iter=30)
+        if not eq.success or not np.array_equal(eq.active, held):
+            break
+        if eq.index == 0:
+            a, ua = m, eq.u
+        else:
+            b, ub = m, eq.u
+    return 0.5 * (a + b), sorted((a, b))
+
+
+def _deposition_point(strip: DiscreteStrip, branches, lo: float, hi: float):
+    """(branch index, point index) of the deposition at the lowest seed value on the traced
+    branches: the branch through the seed's state (:func:`~elastocap.strip.solve.
+    open_state`, the same state to 1e-7, :func:`solved_crossings`), whichever seed or
+    start traced it. (A branch continued from another start can pass through it first; the
+    seed is then not traced again and no branch carries its label: measured at x = 5,
+    n = 286 following n = 143, where the branch of the state past the symmetric state's
+    loss of stability runs down through the symmetric state.) None if none does."""
+    s = strip.with_(delta=_seed_grid(lo, hi)[0])
+    eq = open_state(s)
+    if not eq.success:
+        return None
+    index_of = {id(b): q for q, b in enumerate(branches)}
+    hit = next(((b, j) for b, j, e in solved_crossings(s, branches)
+                if e.success and np.max(np.abs(e.u - eq.u)) < 1e-7), None)
+    return None if hit is None else (index_of[id(hit[0])], hit[1])
 
 
 def _stretch_up(br, label, s0, folds, kind_changes, forward=None) -> dict:
@@ -2088,7 +2148,15 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
                                                     descend=follow is None, **kw)
     folds = _fold_list(strip, branches, labels)
     kinds = _kind_changes(strip, branches, labels)
-    end = _open_end(branches, labels, folds, kinds)
+    end = _open_end(branches, labels, folds, kinds,
+                    at=_deposition_point(strip, branches, lo, hi))
+    if end.get("how") == "stability lost" and end.get("stop") is not None:
+        # located between the last stable traced point and the first unstable one
+        br = branches[labels.index(end["label"])]
+        j = int(end["stop"])
+        loc = _locate_stability_loss(strip, br, j - int(end["step"]), j)
+        if loc is not None:
+            end["value"], end["bracket"] = loc
     # the spreading past the deposition's end may trace branches the search did not reach
     branches, labels = list(branches), list(labels)
     if spreading:

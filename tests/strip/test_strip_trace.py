@@ -604,3 +604,37 @@ def test_the_spreading_past_the_deposited_states_end_follows_each_jump():
     # off by default: nothing computed
     end = open_branch_end(trace_contact_branches(sc, prange=(1.0, 2.0), refine=False))
     assert "past_loss" not in end and "spreading" not in end
+
+
+@pytest.mark.slow
+def test_the_symmetric_states_loss_of_stability_is_located_whatever_the_path():
+    # x = 5, n = 286 (~60 s): the drop's centre is a node, and the deposited symmetric
+    # open state loses stability inside a fixed-contact segment, no fold, between traced
+    # points 8e-3 apart (1.2252 and 1.2333). The end is located by bisection on the index
+    # (measured 1.2270882, bracket 1.6e-5 wide: Newton stops converging next to the
+    # singular point). Traces from two seeds (Delta = 1.2 and 0.6) agree, and the projected
+    # Hessian's inertia (solve.stability, not the continuation's index) is 0 below it and 1
+    # above it on the branch's state.
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": 5.0, "numerics.n_edges": 286})
+    ends = []
+    for prange in ((1.1, 1.4), (0.5, 1.4)):
+        bs = trace_contact_branches(sc, prange=prange, refine=False)
+        end = open_branch_end(bs)
+        assert end["how"] == "stability lost"
+        a, b = end["bracket"]
+        assert a <= end["value"] <= b and b - a < 1e-4
+        ends.append(end)
+    assert abs(ends[0]["value"] - ends[1]["value"]) < 2e-5
+    assert abs(ends[0]["value"] - 1.2270882) < 2e-5
+    br = bs.branches[bs.labels.index(ends[1]["label"])]
+    s0 = int(br.metadata["start_index"])
+    for d, index in ((ends[0]["value"] - 1e-3, 0), (ends[0]["value"] + 1e-3, 1)):
+        # Newton from the upward chain's traced point nearest d, at its contact set (a
+        # symmetric start gives the symmetric state)
+        S = discrete_strip_for(sc, 286).with_(delta=d)
+        k = s0 + int(np.argmax(br.p[s0:] >= d))
+        k = min((k - 1, k), key=lambda q: abs(br.p[q] - d))
+        held = next(h for sl, h in segments_of(br) if sl.start <= k < sl.stop)
+        eq = solve_equilibrium(S, br.u[k][: S.size], active=held, tol=1e-11)
+        assert eq.success and np.array_equal(eq.active, held)
+        assert stability(S, eq)[0] == index, d
