@@ -63,6 +63,11 @@ def _states_at(bs, delta):
     return S, out
 
 
+def test_the_spreading_is_off_by_default(x3):
+    end = open_branch_end(x3)
+    assert "past_loss" not in end and "spreading" not in end
+
+
 def test_unstable_branch_passes_through_the_string_method_saddle(x3):
     # The index-1 branch traced by continuation and the saddle found by the string method
     # + Newton (barrier.barrier) are independent computations of the same state.
@@ -601,9 +606,7 @@ def test_the_spreading_past_the_deposited_states_end_follows_each_jump():
     # the landing offset (PAST_CHANGE of the range: 0.01 and 0.008) does not move the end
     assert ends[0] == pytest.approx(ends[1], abs=1e-9)
     assert abs(ends[0] - 1.7035424) < 1e-6
-    # off by default: nothing computed
-    end = open_branch_end(trace_contact_branches(sc, prange=(1.0, 2.0), refine=False))
-    assert "past_loss" not in end and "spreading" not in end
+
 
 
 @pytest.mark.slow
