@@ -64,6 +64,11 @@ def observed_order(ns, vals):
     return p, abs(err)
 
 
+def range_for(x, given=None):
+    """The Delta range traced at x: ``given`` (--range), else [0.5, min(2.2, 1.95 x)]."""
+    return tuple(given) if given else (0.5, min(2.2, 1.95 * x))
+
+
 def first_order_limit(ns, vals):
     """The limit and the largest residual of the least-squares fit v + C / n."""
     import numpy as np
@@ -89,16 +94,13 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     path = os.path.join(a.out, "strip_convergence.json")
     data = json.load(open(path)) if os.path.exists(path) else {"runs": []}
-    def rng(r):
-        return tuple(r.get("range") or (0.5, min(2.2, 1.95 * r["x"])))
-
     def key(r):
-        return r["x"], r["n"], rng(r), bool(r.get("spreading"))
+        return r["x"], r["n"], range_for(r["x"], r.get("range")), bool(r.get("spreading"))
 
     done = {key(r) for r in data["runs"]}
     sp = load_scene("fig3-strip").spreading
     for x in a.x:
-        prange = tuple(a.range) if a.range else (0.5, min(2.2, 1.95 * x))
+        prange = range_for(x, a.range)
         for n in a.n:
             if (x, n, prange, a.spreading) in done:
                 continue
@@ -110,7 +112,8 @@ def main():
             end = open_branch_end(bs)
             run = {"x": x, "n": n, "range": list(prange), "spreading": a.spreading,
                    "wall_time_s": time.perf_counter() - t,
-                   "deposition_end": {k: v for k, v in end.items() if k != "past_loss"},
+                   "deposition_end": {k: v for k, v in end.items()
+                                      if k not in ("past_loss", "spreading")},
                    "spreading_end": end.get("spreading"),
                    "past_loss": end.get("past_loss"),
                    "open_max": w["open_max"], "encapsulated_min": w["encapsulated_min"],
@@ -137,10 +140,9 @@ def main():
     keys = ("deposition_end", "open_max", "encapsulated_min") + \
         (("spreading_end",) if a.spreading else ())
     for x in a.x:
-        prange = tuple(a.range) if a.range else (0.5, min(2.2, 1.95 * x))
+        prange = range_for(x, a.range)
         runs = {r["n"]: r for r in data["runs"]
-                if (r["x"], rng(r), bool(r.get("spreading"))) ==
-                (x, prange, a.spreading)}
+                if key(r) == (x, r["n"], prange, a.spreading)}
         if not all(n in runs for n in a.n):
             continue
         for q in keys:
