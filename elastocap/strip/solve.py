@@ -25,10 +25,15 @@ convergence studies follow one state, saddles included).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
+from scipy.linalg import eigh_tridiagonal, eigvalsh_tridiagonal
+from scipy.linalg.lapack import dsytrd as _sytrd
+from scipy.linalg.lapack import dsytrd_lwork as _sytrd_lwork
 
 from continuation import factorize
 from elastocap.strip.model import (
@@ -520,38 +525,160 @@ def _penalty(strip, u, k):
     return E, g, H
 
 
-def _trust_step(lam, V, g, radius):
-    """The exact trust-region step (More & Sorensen 1983) on the eigen-decomposition
-    H = V diag(lam) V^T (lam ascending): d = argmin g.d + d.H d / 2 over |d| <= radius.
-    Returns (d, the model decrease, whether d is on the boundary)."""
-    c = V.T @ g
-    lo = float(lam[0])
-    if lo > 0.0:
-        w = c / lam
-        if float(np.linalg.norm(w)) <= radius:
-            return -(V @ w), float(c @ w - 0.5 * w @ (lam * w)), False
-    # mu > max(0, -lo) with |c / (lam + mu)| = radius: Newton on the concave, increasing
-    # phi(mu) = 1 / |w(mu)| - 1 / radius (More & Sorensen), from just above the pole
-    mu = max(0.0, -lo)
-    mu += 1e-12 * max(1.0, abs(lo), float(lam[-1]))
-    w = c / (lam + mu)
-    nw = float(np.linalg.norm(w))
+class _Tridiagonal:
+    """H = Q T Q^T (LAPACK dsytrd, lower storage): T's diagonal and off-diagonal, its
+    smallest and largest eigenvalues (bisection, LAPACK stebz), and Q as its Householder
+    reflectors (applied to vectors in O(n^2), :func:`_reflect`). The reduction is the part
+    of an eigen-decomposition the trust-region subproblem needs: 0.58 ms against 3.25 ms
+    for ``numpy.linalg.eigh`` at n = 199, 1.5 ms against 7.8 ms at 298 (one BLAS thread)."""
+
+    __slots__ = ("a", "tau", "d", "e", "lo", "hi")
+
+    def __init__(self, H):
+        n = H.shape[0]
+        # H is symmetric: its transpose is the Fortran-ordered array LAPACK works in
+        a, d, e, tau, info = _sytrd(np.array(H.T, order="F"), lower=1, lwork=_sytrd_work(n),
+                                    overwrite_a=1)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"dsytrd: info = {info}")
+        self.a, self.tau, self.d, self.e = a, tau, d, e
+        if n == 1:
+            self.lo = self.hi = float(d[0])
+        else:
+            self.lo = float(eigvalsh_tridiagonal(d, e, select="i", select_range=(0, 0))[0])
+            self.hi = float(eigvalsh_tridiagonal(d, e, select="i",
+                                                 select_range=(n - 1, n - 1))[0])
+
+    def lowest_vector(self) -> np.ndarray:
+        """T's eigenvector of its smallest eigenvalue (unit norm)."""
+        if self.d.size == 1:
+            return np.ones(1)
+        return eigh_tridiagonal(self.d, self.e, select="i", select_range=(0, 0))[1][:, 0]
+
+
+@functools.lru_cache(maxsize=None)
+def _sytrd_work(n: int) -> int:
+    """dsytrd's optimal workspace for size n (LAPACK's query)."""
+    return max(1, int(_sytrd_lwork(n, lower=1)[0]))
+
+
+@numba.njit(cache=True)
+def _reflect(a, tau, x, transpose):
+    """Q^T x (``transpose``) or Q x, Q = H(0) H(1) ... H(n-2) from dsytrd's lower storage:
+    H(i) = I - tau_i v v^T, v = (0, ..., 0, 1, a[i+2:, i]) with the 1 at i + 1."""
+    n = x.size
+    y = x.copy()
+    for k in range(n - 1):
+        i = k if transpose else n - 2 - k
+        t = tau[i]
+        if t == 0.0:
+            continue
+        s = y[i + 1]
+        for j in range(i + 2, n):
+            s += a[j, i] * y[j]
+        s *= t
+        y[i + 1] -= s
+        for j in range(i + 2, n):
+            y[j] -= s * a[j, i]
+    return y
+
+
+@numba.njit(cache=True)
+def _shifted_solve(d, e, mu, b):
+    """x with (T + mu I) x = b, T = tridiag(e, d, e), by LDL^T without pivoting; and
+    whether T + mu I is positive definite (every pivot > 0; else x is meaningless)."""
+    n = d.size
+    piv = np.empty(n)
+    m = np.empty(max(n - 1, 0))
+    x = b.copy()
+    piv[0] = d[0] + mu
+    if not piv[0] > 0.0:
+        return x, False
+    for i in range(n - 1):
+        m[i] = e[i] / piv[i]
+        piv[i + 1] = d[i + 1] + mu - m[i] * e[i]
+        if not piv[i + 1] > 0.0:
+            return x, False
+        x[i + 1] -= m[i] * x[i]
+    for i in range(n):
+        x[i] /= piv[i]
+    for i in range(n - 2, -1, -1):
+        x[i] -= m[i] * x[i + 1]
+    return x, True
+
+
+@numba.njit(cache=True)
+def _tridiagonal_product(d, e, w):
+    y = d * w
+    y[:-1] += e * w[1:]
+    y[1:] += e * w[:-1]
+    return y
+
+
+@numba.njit(cache=True)
+def _boundary_multiplier(d, e, c, lo, hi, radius):
+    """(mu, w, |w|, ok, inside): the More-Sorensen Newton iteration on the concave,
+    increasing phi(mu) = 1 / |w(mu)| - 1 / radius, w(mu) = (T + mu I)^{-1} c, from just
+    above the pole mu = max(0, -lo) (phi' = w.(T + mu I)^{-1} w / |w|^3); ok False where
+    T + mu I is not positive definite in the arithmetic at the start (the shift raised
+    tenfold, ten times); inside: |w| <= radius at the pole already (no iteration)."""
+    mu0 = max(0.0, -lo)
+    tiny = 1e-12 * max(1.0, abs(lo), hi)
+    ok = False
+    w = c.copy()
+    mu = mu0
+    for k in range(10):
+        mu = mu0 + tiny * 10.0**k
+        w, ok = _shifted_solve(d, e, mu, c)
+        if ok:
+            break
+    if not ok:
+        return mu, w, 0.0, False, False
+    nw = math.sqrt(float(np.sum(w * w)))
+    if nw <= radius:
+        return mu, w, nw, True, True
     if nw > radius:
         for _ in range(100):
             phi = 1.0 / nw - 1.0 / radius
             if abs(phi) <= 1e-10 / radius:
                 break
-            dphi = float(np.sum(w * w / (lam + mu))) / nw**3
+            q, ok = _shifted_solve(d, e, mu, w)
+            if not ok:
+                return mu, w, nw, False, False
+            dphi = float(np.sum(w * q)) / nw**3
             mu -= phi / dphi
-            w = c / (lam + mu)
-            nw = float(np.linalg.norm(w))
-    elif lo < 0.0:
-        # hard case: g has (almost) no component along the lowest mode; go along it to the
-        # boundary
-        w = w.copy()
-        w[0] = math.sqrt(max(radius**2 - float(w[1:] @ w[1:]), 0.0))
-    pred = float(c @ w - 0.5 * w @ (lam * w))
-    return -(V @ w), pred, True
+            w, ok = _shifted_solve(d, e, mu, c)
+            if not ok:
+                return mu, w, nw, False, False
+            nw = math.sqrt(float(np.sum(w * w)))
+    return mu, w, nw, True, False
+
+
+def _trust_step(T: _Tridiagonal, g, radius):
+    """The exact trust-region step (More & Sorensen 1983) on the tridiagonal reduction
+    H = Q T Q^T (:class:`_Tridiagonal`): d = argmin g.d + d.H d / 2 over |d| <= radius,
+    solved for w = -Q^T d on T (Q is orthogonal: the same problem, with tridiagonal solves
+    in place of an eigen-decomposition). Returns (d, the model decrease, whether d is on
+    the boundary)."""
+    c = _reflect(T.a, T.tau, np.asarray(g, dtype=float), True)
+    if T.lo > 0.0:
+        w, ok = _shifted_solve(T.d, T.e, 0.0, c)
+        if ok and float(np.linalg.norm(w)) <= radius:
+            pred = float(c @ w - 0.5 * w @ _tridiagonal_product(T.d, T.e, w))
+            return -_reflect(T.a, T.tau, w, False), pred, False
+    _mu, w, nw, ok, inside = _boundary_multiplier(T.d, T.e, c, T.lo, T.hi, radius)
+    if not ok:
+        raise np.linalg.LinAlgError(
+            f"the trust-region subproblem: T + mu I not positive definite at mu = {_mu:.3e} "
+            f"(smallest eigenvalue {T.lo:.3e})")
+    if inside and T.lo < 0.0:
+        # hard case: g has (almost) no component along the lowest mode z; go along it to
+        # the boundary
+        z = T.lowest_vector()
+        w = w - float(z @ w) * z
+        w = w + math.sqrt(max(radius**2 - float(w @ w), 0.0)) * z
+    pred = float(c @ w - 0.5 * w @ _tridiagonal_product(T.d, T.e, w))
+    return -_reflect(T.a, T.tau, w, False), pred, True
 
 
 def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500,
@@ -563,7 +690,7 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500,
     :func:`contact_pairs_of`): a descent may pass the strip through itself on the way.
 
     Phase 1: trust-region Newton with the exact Hessian (the subproblem solved exactly on
-    its eigen-decomposition, More & Sorensen 1983; radius 1 to start, as scipy's
+    its tridiagonal reduction, More & Sorensen 1983: radius 1 to start, as scipy's
     ``trust-exact``) on the energy plus an exterior penalty (k/2) sum min(z_k, 0)^2,
     k = ``penalty`` B / h^3: the energy falls at every accepted step, so the descent cannot jump
     over a barrier the way a Newton iteration can. Phase 2: the active-set Newton
@@ -580,15 +707,15 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500,
     k = float(penalty) * strip.B / strip.h**3
     E, g, H = _penalty(strip, u, k)
     radius = 1.0
-    eig = None  # the eigen-decomposition of H, kept while a rejected step leaves H as it is
+    tri = None  # the tridiagonal reduction of H, kept while a rejected step leaves H as it is
     stopped = "the trust region's radius below 1e-14 rad"
     for _ in range(max_iter):
         if float(np.linalg.norm(g)) <= _DESCENT_GTOL:
             stopped = None
             break
-        if eig is None:
-            eig = np.linalg.eigh(0.5 * (H + H.T))
-        d, pred, boundary = _trust_step(eig[0], eig[1], g, radius)
+        if tri is None:
+            tri = _Tridiagonal(0.5 * (H + H.T))
+        d, pred, boundary = _trust_step(tri, g, radius)
         E1, g1, H1 = _penalty(strip, u + d, k)
         rho = (E - E1) / pred if pred > 0.0 else -1.0
         if rho < 0.25:
@@ -597,7 +724,7 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500,
             radius = min(2.0 * radius, 1e3)
         if rho > 0.15:
             u, E, g, H = u + d, E1, g1, H1
-            eig = None
+            tri = None
         if radius < 1e-14:
             break
     else:

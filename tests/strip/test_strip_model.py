@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from spectral_strip import StripProblem, seeds, shape_at, strip_problem_for
 
 from dynamics.bending import bending_energy, bending_gradient
@@ -232,8 +234,8 @@ def test_shoelace_derivatives_bit_identical_to_the_loop_and_against_the_area():
 
 
 def _descent_decomposing_every_iteration(strip, u0, tol=1e-10, max_iter=500):
-    """minimize_energy's trust-region loop with an eigen-decomposition at every iteration,
-    rejected steps included (the reference for the decomposition it keeps)."""
+    """minimize_energy's trust-region loop with a tridiagonal reduction at every iteration,
+    rejected steps included (the reference for the reduction it keeps)."""
     from elastocap.strip import solve
 
     u = np.array(u0, dtype=float)
@@ -243,8 +245,7 @@ def _descent_decomposing_every_iteration(strip, u0, tol=1e-10, max_iter=500):
     for _ in range(max_iter):
         if float(np.linalg.norm(g)) <= solve._DESCENT_GTOL:
             break
-        lam, V = np.linalg.eigh(0.5 * (H + H.T))
-        d, pred, boundary = solve._trust_step(lam, V, g, radius)
+        d, pred, boundary = solve._trust_step(solve._Tridiagonal(0.5 * (H + H.T)), g, radius)
         E1, g1, H1 = solve._penalty(strip, u + d, k)
         rho = (E - E1) / pred if pred > 0.0 else -1.0
         if rho < 0.25:
@@ -259,16 +260,18 @@ def _descent_decomposing_every_iteration(strip, u0, tol=1e-10, max_iter=500):
 
 
 def test_descent_keeps_the_decomposition_over_rejected_steps_bit_identical(monkeypatch):
-    # a rejected trust-region step leaves H as it is: its eigen-decomposition is kept, the
-    # descent is the same bit for bit, with fewer decompositions
+    # a rejected trust-region step leaves H as it is: its tridiagonal reduction is kept,
+    # the descent is the same bit for bit, with fewer reductions
+    from elastocap.strip import solve
+
     calls = {"n": 0}
-    eigh = np.linalg.eigh
+    reduce = solve._Tridiagonal
 
-    def counted(a, *args, **kw):
+    def counted(a):
         calls["n"] += 1
-        return eigh(a, *args, **kw)
+        return reduce(a)
 
-    monkeypatch.setattr(np.linalg, "eigh", counted)
+    monkeypatch.setattr(solve, "_Tridiagonal", counted)
     S = DiscreteStrip(60, L, 2.0, 0.6, 0.36, 40.0)
     s = (np.arange(S.n) + 0.5) * S.h
     folded = np.concatenate([[0.0], math.pi * np.clip((s - S.s1) / (S.s2 - S.s1), 0, 1)])
@@ -281,6 +284,56 @@ def test_descent_keeps_the_decomposition_over_rejected_steps_bit_identical(monke
         assert eq.success and np.array_equal(eq.u, ref.u)
         assert np.array_equal(eq.reactions, ref.reactions) and eq.energy == ref.energy
         assert kept < calls["n"]
+
+
+def _assert_trust_region_optimal(H, g, radius, d, pred):
+    # More & Sorensen (1983), Lemma 2.1: d minimizes g.d + d.H d / 2 over |d| <= radius
+    # iff |d| <= radius and (H + mu I) d = -g for some mu >= 0 with H + mu I positive
+    # semi-definite and mu (radius - |d|) = 0
+    scale = max(1.0, float(np.max(np.abs(H))), float(np.linalg.norm(g)))
+    nd = float(np.linalg.norm(d))
+    assert nd <= radius * (1 + 1e-9)
+    Hd = H @ d
+    mu = max(0.0, -float(d @ (Hd + g)) / (nd * nd)) if nd > 0 else 0.0
+    assert np.linalg.norm(Hd + mu * d + g) <= 1e-7 * scale * max(1.0, radius)
+    assert np.linalg.eigvalsh(H)[0] + mu >= -1e-7 * scale
+    assert mu * (radius - nd) <= 1e-7 * scale * radius
+    assert pred == pytest.approx(-(g @ d + 0.5 * d @ Hd), rel=1e-9, abs=1e-12 * scale)
+
+
+@given(n=st.integers(1, 40), shift=st.floats(-20.0, 40.0), radius=st.floats(1e-4, 1e2),
+       seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=60, deadline=None)
+def test_the_trust_region_step_is_the_subproblems_minimum(n, shift, radius, seed):
+    # the descent's step on the tridiagonal reduction (minimize_energy) against the
+    # optimality conditions of the trust-region subproblem, definite and indefinite
+    from elastocap.strip import solve
+
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n))
+    H = A + A.T + shift * np.eye(n)
+    g = rng.standard_normal(n)
+    d, pred, boundary = solve._trust_step(solve._Tridiagonal(H), g, radius)
+    _assert_trust_region_optimal(H, g, radius, d, pred)
+    if boundary:
+        assert np.linalg.norm(d) >= radius * (1 - 1e-9)
+    else:  # the Newton step, inside
+        assert np.linalg.eigvalsh(H)[0] > 0
+
+
+def test_the_trust_region_step_in_the_hard_case():
+    # g orthogonal to the lowest mode of an indefinite H, its Newton step inside the
+    # radius: the step goes along the lowest mode to the boundary (mu = -lambda_min)
+    from elastocap.strip import solve
+
+    rng = np.random.default_rng(7)
+    Qm, _ = np.linalg.qr(rng.standard_normal((6, 6)))
+    lam = np.array([-1.0, 1.0, 2.0, 3.0, 5.0, 8.0])
+    H = Qm @ np.diag(lam) @ Qm.T
+    g = Qm @ np.array([0.0, 1e-3, 2e-3, 0.0, 1e-3, 0.0])
+    d, pred, boundary = solve._trust_step(solve._Tridiagonal(H), g, 1.0)
+    _assert_trust_region_optimal(H, g, 1.0, d, pred)
+    assert boundary and abs(float(Qm[:, 0] @ d)) > 0.99
 
 
 def test_with_delta_is_the_constructed_strip():
