@@ -637,20 +637,19 @@ def _boundary_multiplier(d, e, c, lo, hi, radius):
     nw = math.sqrt(float(np.sum(w * w)))
     if nw <= radius:
         return mu, w, nw, True, True
-    if nw > radius:
-        for _ in range(100):
-            phi = 1.0 / nw - 1.0 / radius
-            if abs(phi) <= 1e-10 / radius:
-                break
-            q, ok = _shifted_solve(d, e, mu, w)
-            if not ok:
-                return mu, w, nw, False, False
-            dphi = float(np.sum(w * q)) / nw**3
-            mu -= phi / dphi
-            w, ok = _shifted_solve(d, e, mu, c)
-            if not ok:
-                return mu, w, nw, False, False
-            nw = math.sqrt(float(np.sum(w * w)))
+    for _ in range(100):
+        phi = 1.0 / nw - 1.0 / radius
+        if abs(phi) <= 1e-10 / radius:
+            break
+        q, ok = _shifted_solve(d, e, mu, w)
+        if not ok:
+            return mu, w, nw, False, False
+        dphi = float(np.sum(w * q)) / nw**3
+        mu -= phi / dphi
+        w, ok = _shifted_solve(d, e, mu, c)
+        if not ok:
+            return mu, w, nw, False, False
+        nw = math.sqrt(float(np.sum(w * w)))
     return mu, w, nw, True, False
 
 
@@ -715,7 +714,11 @@ def minimize_energy(strip: DiscreteStrip, u0, tol=1e-10, max_iter=500,
             break
         if tri is None:
             tri = _Tridiagonal(0.5 * (H + H.T))
-        d, pred, boundary = _trust_step(tri, g, radius)
+        try:
+            d, pred, boundary = _trust_step(tri, g, radius)
+        except np.linalg.LinAlgError as err:
+            stopped = f"a trust-region subproblem it could not solve ({err})"
+            break
         E1, g1, H1 = _penalty(strip, u + d, k)
         rho = (E - E1) / pred if pred > 0.0 else -1.0
         if rho < 0.25:

@@ -1270,6 +1270,8 @@ class ContactProblem(Problem):
         self.name = f"discrete strip on the ground, n = {strip.n}"
         self.parameters = {"n_edges": strip.n}
         self._cache = _Cache(strip)
+        #: the polished seed equilibria computed so far, by (Delta, seed index)
+        self.seed_states = {}
 
     def split(self, v) -> tuple[np.ndarray, np.ndarray]:
         """(u, r): the state (N,) and the reactions (N,, force)."""
@@ -1325,6 +1327,7 @@ class ContactProblem(Problem):
                 # polished to the round-off floor: the search's Newton accepts it as it is
                 eq = solve_equilibrium(s, eq.u, active=eq.active, tol=_POLISH, max_iter=10,
                                        compute_index=False)
+            self.seed_states[(round(float(p), 10), j)] = eq
             out.append(self.join(eq.u, np.where(eq.active, eq.reactions, 0.0))
                        if eq.success else np.full(2 * self.N, np.nan))
         return out
@@ -1606,6 +1609,12 @@ def _seed_grid(lo: float, hi: float) -> tuple:
     return tuple(d for d in SEED_DELTAS if lo < d < hi) or (0.5 * (lo + hi),)
 
 
+def _branch_settings(lo: float, hi: float) -> ContinuationSettings:
+    """The continuation settings of a branch traced over lo <= Delta <= hi."""
+    return ContinuationSettings(**{**DEFAULTS, "max_steps": _MAX_STEPS, "p_min": lo,
+                                   "p_max": hi})
+
+
 def search_contact_branches(strip: DiscreteStrip, lo: float, hi: float, progress=None,
                             settings: SearchSettings = SEARCH, only=None, starts=(),
                             descend: bool = True):
@@ -1618,12 +1627,12 @@ def search_contact_branches(strip: DiscreteStrip, lo: float, hi: float, progress
     ``only`` limits the seeds (:class:`ContactProblem`); ``starts`` (v, Delta) are
     continued first. ``descend``: then descend past every stability change without a fold
     (:func:`_descent_starts`) and continue the search from the stable states reached
-    (:meth:`continuation.BranchSearch.extend`). Returns (branches, labels, search result).
+    (:meth:`continuation.BranchSearch.extend`). Returns (branches, labels, search result,
+    the seed equilibria computed: :attr:`ContactProblem.seed_states`).
     """
     grid = _seed_grid(lo, hi)
     prob = ContactProblem(strip, grid, only)
-    cont = ContinuationSettings(**{**DEFAULTS, "max_steps": _MAX_STEPS, "p_min": lo,
-                                   "p_max": hi})
+    cont = _branch_settings(lo, hi)
     search = BranchSearch(prob, cont, settings.replace(sample_values=grid), starts=starts,
                           parameter="drop.wetted_length", continuer=continue_contact_branch)
     labels = []
@@ -1652,7 +1661,7 @@ def search_contact_branches(strip: DiscreteStrip, lo: float, hi: float, progress
                    f"descent past a stability change at Delta = {c:.4g}, at Delta = "
                    f"{o['p']:.4g}" if c is not None else
                    _label(o, prob.SEED_KINDS))
-    return search.result.branches, labels, search.result
+    return search.result.branches, labels, search.result, prob.seed_states
 
 
 # --------------------------------------------------------------------------- reporting
@@ -1845,16 +1854,21 @@ def _point_of(s: DiscreteStrip, branches, eq: Equilibrium):
                  if e.success and np.max(np.abs(e.u - eq.u)) < 1e-7), None)
 
 
-def _deposition_point(strip: DiscreteStrip, branches, lo: float, hi: float):
+def _deposition_point(strip: DiscreteStrip, branches, lo: float, hi: float, seeded=None):
     """(branch index, point index) of the deposition at the lowest seed value on the traced
     branches: the branch through the seed's state (:func:`~elastocap.strip.solve.
     open_state`, the same state to 1e-7, :func:`solved_crossings`), whichever seed or
     start traced it. (A branch continued from another start can pass through it first; the
     seed is then not traced again and no branch carries its label: measured at x = 5,
     n = 286 following n = 143, where the branch of the state past the symmetric state's
-    loss of stability runs down through the symmetric state.) None if none does."""
-    s = strip.with_(delta=_seed_grid(lo, hi)[0])
-    eq = open_state(s)
+    loss of stability runs down through the symmetric state.) The seed's state is taken
+    from ``seeded`` (the search's :attr:`ContactProblem.seed_states`) where the search
+    computed it, else descended to. None if no branch passes through it."""
+    d0 = _seed_grid(lo, hi)[0]
+    s = strip.with_(delta=d0)
+    eq = (seeded or {}).get((round(float(d0), 10), 0))
+    if eq is None:
+        eq = open_state(s)
     return _point_of(s, branches, eq) if eq.success else None
 
 
@@ -1986,9 +2000,7 @@ def _trace_landing(strip: DiscreteStrip, eq: Equilibrium, p: float, lo: float, h
     of eq's point), or None if it could not be traced."""
     prob = ContactProblem(strip)
     v = prob.join(eq.u, np.where(eq.active, eq.reactions, 0.0))
-    cont = ContinuationSettings(**{**DEFAULTS, "max_steps": _MAX_STEPS, "p_min": lo,
-                                   "p_max": hi})
-    br = continue_contact_branch(prob, v, p, cont)
+    br = continue_contact_branch(prob, v, p, _branch_settings(lo, hi))
     if br.u is None or len(br) == 0:
         return None
     branches.append(br)
@@ -2147,12 +2159,12 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
         # following, not searching: no neighbour seeds and one round
         kw = {**_follow(follow, strip),
               "settings": SEARCH.replace(neighbour_seeds=False, max_rounds=1)}
-    branches, labels, res = search_contact_branches(strip, lo, hi, progress,
+    branches, labels, res, seeded = search_contact_branches(strip, lo, hi, progress,
                                                     descend=follow is None, **kw)
     folds = _fold_list(strip, branches, labels)
     kinds = _kind_changes(strip, branches, labels)
     end = _open_end(branches, labels, folds, kinds,
-                    at=_deposition_point(strip, branches, lo, hi))
+                    at=_deposition_point(strip, branches, lo, hi, seeded))
     if end.get("how") == "stability lost" and end.get("stop") is not None:
         # located between the last stable traced point and the first unstable one
         br = branches[labels.index(end["label"])]

@@ -336,6 +336,23 @@ def test_the_trust_region_step_in_the_hard_case():
     assert boundary and abs(float(Qm[:, 0] @ d)) > 0.99
 
 
+def test_a_trust_region_subproblem_that_cannot_be_solved_stops_the_descent(monkeypatch):
+    # the subproblem's failure (its shifted matrix not positive definite in the
+    # arithmetic) ends the descent with the reason, not an exception
+    from elastocap.strip import solve
+
+    def fails(T, g, radius):
+        raise np.linalg.LinAlgError("T + mu I not positive definite (test)")
+
+    monkeypatch.setattr(solve, "_trust_step", fails)
+    S = DiscreteStrip(60, L, 2.0, 1.6, 0.36, 40.0)
+    s = (np.arange(S.n) + 0.5) * S.h
+    folded = np.concatenate([[0.0], math.pi * np.clip((s - S.s1) / (S.s2 - S.s1), 0, 1)])
+    eq = minimize_energy(S, folded, tol=1e-10)
+    assert not eq.success
+    assert "a trust-region subproblem it could not solve (T + mu I not positive" in eq.message
+
+
 def test_with_delta_is_the_constructed_strip():
     # a copy at another Delta (made without the constructor) equals the strip the
     # constructor makes, shares the node arrays and refuses a drop off the strip alike

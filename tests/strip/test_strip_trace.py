@@ -38,8 +38,6 @@ from elastocap.strip.trace import (
 L, A, GAMMA = 14.3, 0.36, 40.0
 
 
-
-
 @pytest.fixture(scope="module")
 def x3():
     """All branches at x = 3, n = 60, without refinement (~5 s)."""
@@ -606,7 +604,6 @@ def test_the_spreading_past_the_deposited_states_end_follows_each_jump():
     # the landing offset (PAST_CHANGE of the range: 0.01 and 0.008) does not move the end
     assert ends[0] == pytest.approx(ends[1], abs=1e-9)
     assert abs(ends[0] - 1.7035424) < 1e-6
-
 
 
 @pytest.mark.slow
