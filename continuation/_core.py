@@ -445,7 +445,7 @@ class _Run:
         self.stab.append(stab)
         self.det.append(det_sign)
         self.obs.append(obs)
-        self.ev_vals.append({k: float(g(x[:n], x[n])) for k, g in self.events.items()})
+        self.ev_vals.append({k: _event_value(g(x[:n], x[n])) for k, g in self.events.items()})
 
 
 def _p_reversed(pa, pb, dpa, dpb) -> bool:
@@ -870,16 +870,72 @@ def _detect(core, run, k, skip_first=False):
         run.sps.append(sp)
     # ---- user events
     for name, g in run.events.items():
-        ga, gb = run.ev_vals[k - 1][name], run.ev_vals[k][name]
+        (ga, va), (gb, vb) = run.ev_vals[k - 1][name], run.ev_vals[k][name]
         if ga * gb < 0 or (gb == 0 and ga != 0):
             sp = SpecialPoint("event", k, run.p[k], run.u[k].copy(),
                               abs(run.p[k] - run.p[k - 1]), False, name, {})
             if s.locate:
-                xr, prec = _bisect_on_arc(core, run, k, lambda x, g=g: float(g(x[:n], x[n])),
-                                          ga, gb, chord=True)
+                xr, prec = (None, None) if va is None else \
+                    _locate_vector_event(core, run, k, g, va, vb)
+                if xr is None:
+                    xr, prec = _bisect_on_arc(
+                        core, run, k, lambda x, g=g: _event_value(g(x[:n], x[n]))[0],
+                        ga, gb, chord=True)
                 if xr is not None:
                     sp.p, sp.u, sp.precision, sp.located = float(xr[n]), xr[:n].copy(), prec, True
             run.sps.append(sp)
+
+
+def _event_value(val):
+    """(value, entries) of an event function's output: a float is its own value (entries
+    None); a 1-D array's value is its smallest entry."""
+    if np.ndim(val) == 0:
+        return float(val), None
+    v = np.asarray(val, dtype=float)
+    if v.ndim != 1 or v.size == 0:
+        raise ValueError(f"an event function returned an array of shape {v.shape}; "
+                         "expected a float or a non-empty 1-D array")
+    return float(v.min()), v
+
+
+def _locate_vector_event(core, run, k, g, va, vb):
+    """Root of a vector event's smallest entry between points k-1 and k, located on the
+    one entry whose sign change makes it (:func:`_bisect_on_arc` on a smooth function,
+    where the smallest entry has kinks where the entries cross each other, and Brent's
+    method takes bisection steps there).
+
+    Falling (the smallest entry positive at k-1): the entry that turns negative first by
+    linear interpolation; rising: the negative one that turns positive last. The root is
+    accepted where every other entry has the sign the smallest entry needs there (the
+    root of that entry is then the smallest entry's root); otherwise, or where the entry's
+    values are not finite, ``(None, None)`` and the caller locates the smallest entry
+    itself."""
+    n = core.n
+    fall = va.min() > 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cross = va / (va - vb)  # the linear interpolant's zero, as a fraction of the step
+    if fall:
+        cand = np.flatnonzero((vb <= 0.0) & np.isfinite(cross))
+        if cand.size == 0:
+            return None, None
+        j = int(cand[np.argmin(cross[cand])])
+    else:
+        cand = np.flatnonzero((va < 0.0) & np.isfinite(cross))
+        if cand.size == 0:
+            return None, None
+        j = int(cand[np.argmax(cross[cand])])
+    if not (np.isfinite(va[j]) and np.isfinite(vb[j])):
+        return None, None
+    xr, prec = _bisect_on_arc(core, run, k, lambda x: float(g(x[:n], x[n])[j]),
+                              float(va[j]), float(vb[j]), chord=True)
+    if xr is None:
+        return None, None
+    v = np.asarray(g(xr[:n], xr[n]), dtype=float).copy()
+    v[j] = np.inf
+    # falling: no other entry negative before the root; rising: none still negative
+    if v.min() < 0.0:
+        return None, None
+    return xr, prec
 
 
 def _normalize_events(events):
@@ -1024,7 +1080,10 @@ def continue_branch(
     settings : ContinuationSettings, optional
     events : dict[str, callable] or list of callables, optional
         User functions ``g(u, p) -> float``; a sign change between two points
-        is located and recorded as a special point of kind ``"event"``.
+        is located and recorded as a special point of kind ``"event"``. A function may
+        return a 1-D array instead: its value is the smallest entry, and its sign change
+        is located on the entry that makes it (smooth where the smallest entry has kinks;
+        see :func:`_locate_vector_event`).
     stop_on : collection of str
         Names of events that end the run (status ``STOPPED``), also on the step cut back
         onto ``p_min`` or ``p_max`` (the event lies before the bound).

@@ -612,8 +612,9 @@ def _kink_events(strip, v0, p0, sign):
 
 
 def _event_function(strip, tools, guard, v0, p0):
-    """min over held nodes of r_k / (q h) and over free nodes of c z_k / (q h): negative
-    once the fixed-set branch stops being a contact equilibrium (dimensionless)."""
+    """The entries r_k / (q h) of the held nodes and c z_k / (q h) of the free ones (and
+    the drop's and the self-contact's, below): their minimum is negative once the
+    fixed-set branch stops being a contact equilibrium (dimensionless)."""
     split, A, c, cache = tools["split"], tools["A"], tools["c"], tools["cache"]
     N = strip.size
     free_nodes = np.setdiff1d(np.arange(N), A)
@@ -662,10 +663,7 @@ def _event_function(strip, tools, guard, v0, p0):
             val[list(guard)] = math.inf
         return val
 
-    def g(v, p):
-        return float(np.min(values(v, p)))
-
-    return g, values
+    return values
 
 
 def _tangent(prob, v, p, orient):
@@ -704,7 +702,7 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pa
     prob, tools = active_set_problem(strip, active, pairs)
     v0 = tools["join"](u0, r0, mu0)
     p0 = float(strip.delta)
-    g, values = _event_function(strip, tools, guard, v0, p0)
+    values = _event_function(strip, tools, guard, v0, p0)
     st = settings.replace(p_min=lo, p_max=hi)
     if tools["P"].shape[0]:
         st = st.replace(locate_tol=max(st.locate_tol, _SELF_LOCATE_TOL))
@@ -717,7 +715,9 @@ def _segment(strip, u0, r0, active, lo, hi, settings, tangent=None, guard=(), pa
         # a given tangent already points the way (continue_branch reverses it for
         # direction = -1, which turned a restarted downward segment back up)
         st = st.replace(direction=1)
-    events = {"contact": g, **_kink_events(strip, v0, p0, sign)}
+    # the contact event as the vector of its entries: continue_branch locates its sign
+    # change on the one entry that makes it (smooth, where their minimum has kinks)
+    events = {"contact": values, **_kink_events(strip, v0, p0, sign)}
     if strip.thickness > 0.0:
         # a constraint already violated at the start would keep the event function
         # negative all along, and no later event could fire

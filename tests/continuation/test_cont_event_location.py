@@ -4,6 +4,8 @@ the located event solves the augmented system that an independent Newton solves.
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import continuation as C
 from continuation import _core
@@ -140,3 +142,80 @@ def test_event_location_leaves_the_branch_bit_identical(bratu_branch):
     assert all(sp.located for sp in evs)
     assert all(abs(sp.p - 2.0) < 2e-12 for sp in evs if sp.name == "p2")
     assert np.array_equal(with_events.p, br.p) and np.array_equal(with_events.u, br.u)
+
+
+# ---------------------------------------------------------------- vector events
+# On u = p (one unknown) an event's entries are functions of p alone, so the first root of
+# their minimum is known in closed form.
+LINE = C.FunctionProblem(lambda u, p: u - p, jacobian=lambda u, p: np.eye(1),
+                         dfdp=lambda u, p: -np.ones(1), name="line")
+LS = C.ContinuationSettings(ds0=0.05, ds_max=0.4, max_steps=40, p_min=0.0, p_max=3.0)
+
+
+def _counting_bisect(monkeypatch):
+    calls = {"bisect": 0}
+    real = _core._bisect_on_arc
+
+    def counted(*a, **k):
+        calls["bisect"] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(_core, "_bisect_on_arc", counted)
+    return calls
+
+
+def _located(events, monkeypatch=None):
+    calls = _counting_bisect(monkeypatch) if monkeypatch is not None else {}
+    br = C.continue_branch(LINE, np.zeros(1), 0.0, LS, events=events)
+    return list(br.points("event")), calls
+
+
+@settings(max_examples=25, deadline=None)
+@given(a=st.lists(st.floats(0.3, 2.7), min_size=1, max_size=6),
+       b=st.lists(st.floats(0.0, 0.3), min_size=6, max_size=6))
+def test_a_vector_event_is_located_at_its_smallest_entrys_first_root(a, b):
+    # entries a_i - p - b_i p^2 (b_i >= 0): each falls through one root in (0, 3); the
+    # minimum's first root is the smallest of them (the quadratic formula, in its form
+    # without cancellation)
+    a, b = np.array(a), np.array(b[:len(a)])
+
+    def entries(u, p):
+        return a - p - b * p * p
+
+    first = float(np.min(2.0 * a / (1.0 + np.sqrt(1.0 + 4.0 * a * b))))
+    evs, _ = _located({"vec": entries})
+    assert evs and evs[0].located
+    assert abs(evs[0].p - first) < 2e-12
+    # the same root as the scalar event of their minimum (Brent's method on its kinks)
+    scalar, _ = _located({"min": lambda u, p: float(np.min(entries(u, p)))})
+    assert abs(scalar[0].p - evs[0].p) < 2e-12
+
+
+def test_a_rising_vector_event_is_located_where_its_last_negative_entry_turns(monkeypatch):
+    a = np.array([0.7, 1.3, 1.1])
+    evs, calls = _located({"vec": lambda u, p: p - a}, monkeypatch)
+    (ev,) = evs
+    assert ev.located and abs(ev.p - 1.3) < 2e-12
+    assert calls["bisect"] == 1  # on the entry, accepted
+
+
+def test_an_entry_crossing_first_against_the_linear_guess_falls_back(monkeypatch):
+    # the second entry is convex: over a step from above 0.8 to past 1 it turns negative
+    # first (at 0.8 + ln 3 / 20) while the linear interpolation of the step's ends puts the
+    # first entry's crossing (p = 1) earlier; the entry is then located on the minimum
+    def entries(u, p):
+        return np.array([1.0 - p, 0.15 * np.exp(-20.0 * (p - 0.8)) - 0.05])
+
+    calls = _counting_bisect(monkeypatch)
+    st_ = LS.replace(ds0=0.4, ds_max=0.4)
+    br = C.continue_branch(LINE, np.array([0.8]), 0.8, st_, events={"vec": entries})
+    ev = br.points("event")[0]
+    assert br.p[1] > 1.0  # one step over both roots
+    assert calls["bisect"] == 2  # the entry's root refused, then the minimum's
+    assert ev.located and abs(ev.p - (0.8 + np.log(3.0) / 20.0)) < 2e-12
+
+
+def test_an_event_returning_a_matrix_is_refused():
+    with pytest.raises(ValueError, match=r"shape \(1, 2\).*1-D array"):
+        C.continue_branch(LINE, np.zeros(1), 0.0, LS,
+                          events={"m": lambda u, p: np.ones((1, 2))})
