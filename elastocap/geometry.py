@@ -153,6 +153,10 @@ def proper_crossing(ax, az, rx, rz, bx, bz, sx, sz):
 segments_cross = numba.njit(cache=True, error_model="numpy")(proper_crossing)
 
 
+#: Segments of b per block of :func:`count_crossings`'s bounding-box pruning.
+CROSSING_BLOCK = 16
+
+
 @numba.njit(cache=True)
 def count_crossings(a, b, same, skip_a0, skip_a1):
     """Proper crossings of the segments of polyline a (m, 2) with those of b (k, 2).
@@ -160,7 +164,26 @@ def count_crossings(a, b, same, skip_a0, skip_a1):
     With ``same`` (a is b) adjacent segments are not tested; segments of a with index below
     ``skip_a0`` or from ``skip_a1`` on are skipped (e.g. the ends of an interface that start
     on the rod). Touching end points (within 1e-9 of a segment's length) do not count.
+
+    Segments with disjoint bounding boxes cannot cross and are not tested; b's segments
+    are grouped in blocks of ``CROSSING_BLOCK`` whose bounding boxes are tested first, so a
+    block that is nowhere near a segment of a costs one test (the count is the one of the
+    pair-by-pair test: a block's box holds its segments' boxes).
     """
+    nb = b.shape[0] - 1
+    nblk = (nb + CROSSING_BLOCK - 1) // CROSSING_BLOCK if nb > 0 else 0
+    box = np.empty((nblk, 4))
+    for kb in range(nblk):
+        k0 = kb * CROSSING_BLOCK
+        k1 = min(k0 + CROSSING_BLOCK, nb)
+        bx0 = bx1 = b[k0, 0]
+        bz0 = bz1 = b[k0, 1]
+        for k in range(k0 + 1, k1 + 1):
+            bx0 = min(bx0, b[k, 0])
+            bx1 = max(bx1, b[k, 0])
+            bz0 = min(bz0, b[k, 1])
+            bz1 = max(bz1, b[k, 1])
+        box[kb, 0], box[kb, 1], box[kb, 2], box[kb, 3] = bx0, bx1, bz0, bz1
     count = 0
     for i in range(max(skip_a0, 0), min(a.shape[0] - 1, skip_a1)):
         ax, az = a[i, 0], a[i, 1]
@@ -169,15 +192,20 @@ def count_crossings(a, b, same, skip_a0, skip_a1):
         x0, x1 = min(ax, ex), max(ax, ex)
         z0, z1 = min(az, ez), max(az, ez)
         j0 = i + 2 if same else 0
-        for j in range(j0, b.shape[0] - 1):
-            bx, bz = b[j, 0], b[j, 1]
-            cx, cz = b[j + 1, 0], b[j + 1, 1]
-            # segments with disjoint bounding boxes cannot cross: skip the exact test
-            if ((bx > x1 and cx > x1) or (bx < x0 and cx < x0)
-                    or (bz > z1 and cz > z1) or (bz < z0 and cz < z0)):
+        for kb in range(j0 // CROSSING_BLOCK, nblk):
+            if (box[kb, 0] > x1 or box[kb, 1] < x0 or box[kb, 2] > z1
+                    or box[kb, 3] < z0):
                 continue
-            if segments_cross(ax, az, rx, rz, bx, bz, cx - bx, cz - bz)[0]:
-                count += 1
+            for j in range(max(j0, kb * CROSSING_BLOCK), min(kb * CROSSING_BLOCK
+                                                            + CROSSING_BLOCK, nb)):
+                bx, bz = b[j, 0], b[j, 1]
+                cx, cz = b[j + 1, 0], b[j + 1, 1]
+                # segments with disjoint bounding boxes cannot cross: skip the exact test
+                if ((bx > x1 and cx > x1) or (bx < x0 and cx < x0)
+                        or (bz > z1 and cz > z1) or (bz < z0 and cz < z0)):
+                    continue
+                if segments_cross(ax, az, rx, rz, bx, bz, cx - bx, cz - bz)[0]:
+                    count += 1
     return count
 
 

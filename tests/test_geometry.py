@@ -7,7 +7,13 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from elastocap.geometry import arc_offsets, arc_points, proper_crossing, segments_cross
+from elastocap.geometry import (
+    arc_offsets,
+    arc_points,
+    count_crossings,
+    proper_crossing,
+    segments_cross,
+)
 
 
 @settings(max_examples=60, deadline=None)
@@ -76,3 +82,54 @@ def test_proper_crossing_on_arrays_equals_the_compiled_scalar_test():
     # a closed form: the diagonals of the unit square cross at their midpoints
     h, uu = segments_cross(0.0, 0.0, 1.0, 1.0, 1.0, 0.0, -1.0, 1.0)
     assert h and uu == 0.5
+
+
+def _crossings_pair_by_pair(a, b, same, skip_a0, skip_a1):
+    """Every pair tested with the vectorised proper_crossing (no pruning)."""
+    count = 0
+    for i in range(max(skip_a0, 0), min(len(a) - 1, skip_a1)):
+        j0 = i + 2 if same else 0
+        if j0 >= len(b) - 1:
+            continue
+        bs, be = b[j0:-1], b[j0 + 1:]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            hit, _u = proper_crossing(a[i, 0], a[i, 1], a[i + 1, 0] - a[i, 0],
+                                      a[i + 1, 1] - a[i, 1], bs[:, 0], bs[:, 1],
+                                      be[:, 0] - bs[:, 0], be[:, 1] - bs[:, 1])
+        count += int(np.count_nonzero(hit))
+    return count
+
+
+@settings(max_examples=80, deadline=None)
+@given(n=st.integers(1, 90), m=st.integers(1, 40), seed=st.integers(0, 2**31 - 1),
+       flat=st.floats(0.0, 1.0), turn=st.floats(0.05, 2.0),
+       skip0=st.integers(-2, 5), skip1=st.integers(0, 100))
+def test_count_crossings_is_the_pair_by_pair_count(n, m, seed, flat, turn, skip0, skip1):
+    # random walks of unit edges turning by up to `turn` per node (they fold over
+    # themselves), a fraction `flat` of the nodes put on the line z = 0 (a strip on the
+    # ground: boxes that touch everywhere)
+    rng = np.random.default_rng(seed)
+
+    def walk(k):
+        th = np.cumsum(rng.uniform(-turn, turn, k))
+        x = np.concatenate([[[0.0, 0.0]], np.cumsum(np.c_[np.cos(th), np.sin(th)], axis=0)])
+        x[rng.random(k + 1) < flat, 1] = 0.0
+        return x
+
+    a, b = walk(n), walk(m)
+    assert count_crossings(a, a, True, skip0, skip1) == \
+        _crossings_pair_by_pair(a, a, True, skip0, skip1)
+    assert count_crossings(a, b, False, skip0, skip1) == \
+        _crossings_pair_by_pair(a, b, False, skip0, skip1)
+
+
+def test_count_crossings_counts_a_known_figure():
+    # a rectangle's outline crossed once by a vertical line, four times by a zig-zag
+    box = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 2.0], [0.0, 2.0], [0.0, 0.0]])
+    line = np.array([[2.0, -1.0], [2.0, 1.0]])
+    zig = np.array([[1.0, -1.0], [1.5, 1.0], [2.5, -1.0], [3.0, 3.0]])
+    assert count_crossings(line, box, False, 0, 10) == 1
+    assert count_crossings(zig, box, False, 0, 10) == 4
+    # a loop: the fourth edge crosses the first
+    loop = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, -1.0]])
+    assert count_crossings(loop, loop, True, 0, 10) == 1
