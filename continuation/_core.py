@@ -912,20 +912,14 @@ def _locate_vector_event(core, run, k, g, va, vb):
     itself."""
     n = core.n
     fall = va.min() > 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cross = va / (va - vb)  # the linear interpolant's zero, as a fraction of the step
-    if fall:
-        cand = np.flatnonzero((vb <= 0.0) & np.isfinite(cross))
-        if cand.size == 0:
-            return None, None
-        j = int(cand[np.argmin(cross[cand])])
-    else:
-        cand = np.flatnonzero((va < 0.0) & np.isfinite(cross))
-        if cand.size == 0:
-            return None, None
-        j = int(cand[np.argmax(cross[cand])])
-    if not (np.isfinite(va[j]) and np.isfinite(vb[j])):
+    # the entries that change sign the way the smallest does, finite at both ends
+    cand = np.flatnonzero(((vb <= 0.0) if fall else (va < 0.0))
+                          & np.isfinite(va) & np.isfinite(vb))
+    if cand.size == 0:
         return None, None
+    # their linear interpolants' zeros, as fractions of the step (va != vb: a sign change)
+    cross = va[cand] / (va[cand] - vb[cand])
+    j = int(cand[np.argmin(cross) if fall else np.argmax(cross)])
     xr, prec = _bisect_on_arc(core, run, k, lambda x: float(g(x[:n], x[n])[j]),
                               float(va[j]), float(vb[j]), chord=True)
     if xr is None:
