@@ -17,9 +17,11 @@
    ``rod.thickness``, in fresh processes alternated ``--repeat`` times, each timing one
    warm run of every case (CPU time); medians, the with/without ratio of each tree, the
    extra CPU time per contact step, and whether both trees give the same frames (bytes).
+   With ``--many``: instead a strip that ends lying on itself over up to ~100 contacts (a
+   run of the Fig 3d contact sweep at 200 edges).
 
 Run: ``python benchmarks/contact_speed.py [--baseline REV|DIR] [--against REV] [--repeat K]
-[--only 1|2|3|4]``.
+[--only 1|2|3|4] [--many]``.
 The thicknesses: supp-fig5 ``0.05`` (l_ec units), fig3-strip ``0.02`` (l_eg units, a strip
 of ~70 um): choices of this benchmark, not the paper's (its model has no contact).
 """
@@ -178,6 +180,16 @@ SUSTAINED_CASES = tuple(("fig3-strip", dict(ov, **{"rod.thickness": th}))
                                    {"drop.distance_from_end": 2.0})
                         for th in (0.0, THICK["fig3-strip"]))
 
+#: ``--many``: a strip that ends lying on itself over up to ~100 contacts, a run of the
+#: Fig 3d contact sweep (``elastocap figures --only fig3d-contact``: x = 4.5, We^1/2 =
+#: 3.156, damping 0.1, t_max 150, the strip's thickness 0.0157) at its second level, 200
+#: edges.
+MANY_CASES = tuple(("fig3-strip", {"drop.distance_from_end": 4.5,
+                                   "drop.wetted_length": 1.488958, "effects.damping": 0.1,
+                                   "numerics.t_max": 150.0, "numerics.n_edges": 200,
+                                   "numerics.dt": 0.00161035875, "rod.thickness": th})
+                   for th in (0.0, 0.0157))
+
 #: One process of section 4: each case run once to compile / load, then timed once (CPU
 #: time), with its contact steps and a digest of its frames.
 SUSTAINED_SNIPPET = """
@@ -188,7 +200,8 @@ import elastocap
 assert elastocap.__file__.startswith(sys.argv[1]), (elastocap.__file__, sys.argv[1])
 for name, ov in json.loads(sys.argv[2]):
     scene = load_scene(name, ov)
-    run_impact(scene)
+    # the warm-up compiles (or loads) the run's stepper: the same effects, a short run
+    run_impact(load_scene(name, dict(ov, **{"numerics.t_max": 1.0})))
     c = time.thread_time()
     r = run_impact(scene)
     cpu = time.thread_time() - c
@@ -199,19 +212,21 @@ for name, ov in json.loads(sys.argv[2]):
 """
 
 
-def sustained_against(against, repeat):
+def sustained_against(against, repeat, many=False):
     """Section 4: the with/without ratio of sustained contact, the working tree against
-    revision ``against``, side by side in alternated fresh processes."""
+    revision ``against``, side by side in alternated fresh processes (``many``: the
+    strip lying on itself of :data:`MANY_CASES` instead)."""
     sha, tree = _baseline_tree(against)
     section(f"4. sustained contact: {sha} against the working tree (CPU s of a warm run, "
             f"medians of {repeat} alternated processes per tree)")
-    cases = json.dumps([list(c) for c in SUSTAINED_CASES])
+    all_cases = MANY_CASES if many else SUSTAINED_CASES
+    cases = json.dumps([list(c) for c in all_cases])
     trees = {sha: tree, "tree": ROOT}
     res = alternate_processes(trees, sha, SUSTAINED_SNIPPET, cases, 1, repeat)
     med = {t: [float(np.median([run[k]["runs"][0]["cpu"] for run in res[t]]))
-               for k in range(len(SUSTAINED_CASES))] for t in trees}
-    for k in range(0, len(SUSTAINED_CASES), 2):
-        ov = SUSTAINED_CASES[k][1]
+               for k in range(len(all_cases))] for t in trees}
+    for k in range(0, len(all_cases), 2):
+        ov = all_cases[k][1]
         label = f"fig3-strip x={ov['drop.distance_from_end']:g}"
         last = {t: (res[t][-1][k], res[t][-1][k + 1]) for t in trees}
         same = all(last[sha][i]["frames"] == last["tree"][i]["frames"] for i in (0, 1))
@@ -258,6 +273,8 @@ def main():
                     help="git revision of the contact code to compare with (section 4)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--only", type=int, choices=(1, 2, 3, 4))
+    ap.add_argument("--many", action="store_true",
+                    help="section 4 on a strip lying on itself (up to ~100 contacts)")
     a = ap.parse_args()
     if a.only in (None, 1):
         contact_free_against(a.baseline, a.repeat)
@@ -266,7 +283,7 @@ def main():
     if a.only in (None, 3):
         witness()
     if a.only in (None, 4):
-        sustained_against(a.against, a.repeat)
+        sustained_against(a.against, a.repeat, a.many)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,132 @@
+"""The banded complementarity solve of self-contact (``dynamics.contact._band_lcp``) against
+the dense Schur complement with projected Gauss-Seidel, and against the conditions it
+solves.
+
+The scenes are rods folded in two layers, the upper arm pressed into the lower one, as in
+a strip lying on itself: random sizes, fold positions, penetrations, edge residuals, old
+and current edge directions (the position stage, ``f = 2``, and the velocity stage,
+``f = 1`` with ``O = R``), masses, held nodes and multipliers to start from.  At these
+contact counts the solver takes the banded path; it must give the update of the positions
+the dense solve gives, and that update must satisfy the complementarity conditions:
+multipliers ``nu >= 0``, gaps after the update ``>= 0``, zero where a contact pushes.
+"""
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from dynamics import contact
+
+
+def _folded(seed, m, f, held):
+    """Arguments of ``_bordered_solve`` for a rod of ``m`` edges folded at its middle, the
+    upper arm 0-20 % of the thickness into the lower one."""
+    rng = np.random.default_rng(seed)
+    h, d = 0.1, 0.05
+    a = m // 2
+    n = m + 1
+    x = np.zeros((n, 2))
+    shift = rng.uniform(0.05, 0.95) * h
+    for i in range(n):
+        if i <= a:
+            x[i] = (i * h, 0.0)
+        else:
+            x[i] = ((2 * a - i) * h + shift, d * (1.0 - 0.2 * rng.random()))
+    O = np.diff(x, axis=0)
+    R = O + (0.0 if f == 1.0 else 1e-3 * h) * rng.standard_normal(O.shape)
+    if f == 1.0:
+        O = R
+    w = rng.uniform(0.5, 2.0, size=(n, 1)) * np.ones((n, 2))
+    if held:
+        w[: a // 2, 1] = 0.0  # the lower arm's far part held by the ground
+    rows = []
+    for i in range(a + 2, n):
+        j = int(np.floor(x[i, 0] / h))
+        if 0 <= j < a - 1:
+            rows.append((i, j, x[i, 0] / h - j))
+    na = len(rows)
+    ci = np.array([r[:2] for r in rows], dtype=np.int64)
+    cu = np.array([r[2] for r in rows])
+    cn = np.tile([0.0, 1.0], (na, 1))
+    rhs_c = d - x[ci[:, 0], 1] + 1e-3 * d * rng.standard_normal(na)
+    rhs_e = 1e-4 * h * h * rng.standard_normal(m)
+    mu0 = np.where(rng.random(na) < 0.5, 1e-3 * rng.random(na), 0.0)
+    ck = contact.new_contact_work(np.full(m, h))
+    return (R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, mu0)
+
+
+def _solve(args, band):
+    R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, mu0 = args
+    m = R.shape[0]
+    dl = np.zeros(m + 2)
+    dm = np.zeros(na + 2)
+    eq = np.zeros(na, dtype=np.int64)
+    hint = np.zeros(na, dtype=np.int64)
+    before = ck.meta.copy()
+    ok = contact._bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, True,
+                                 mu0, eq, hint, 1e-18, band)
+    assert ok
+    banded = ck.meta[contact._NBAND] - before[contact._NBAND]
+    dq = np.zeros((m + 1, 2))
+    contact._apply(dq, w, O, dl, na, ci, cu, cn, dm, 1.0)
+    return dq, dm[:na] + mu0, banded
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31), m=st.integers(160, 400), f=st.sampled_from([1.0, 2.0]),
+       held=st.booleans())
+def test_banded_solve_agrees_with_the_dense_one(seed, m, f, held):
+    args = _folded(seed, m, f, held)
+    R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, mu0 = args
+    assert na >= contact.BAND_MIN
+    dq_b, nu_b, banded = _solve(args, True)
+    dq_d, _nu_d, dense_banded = _solve(args, False)
+    assert banded == 1 and dense_banded == 0
+    scale = np.abs(dq_d).max()
+    # the same update of the positions, to the dense solve's own accuracy: its projected
+    # Gauss-Seidel stops at changes of 1e-6 of the complementarity residual it starts from
+    # (the Newton iteration around it refines the rest)
+    assert np.abs(dq_b - dq_d).max() <= 1e-6 * scale
+    # complementarity, to round-off of the update's size
+    gaps = (cn[:, 0] * (dq_b[ci[:, 0], 0] - (1 - cu) * dq_b[ci[:, 1], 0]
+                        - cu * dq_b[ci[:, 1] + 1, 0])
+            + cn[:, 1] * (dq_b[ci[:, 0], 1] - (1 - cu) * dq_b[ci[:, 1], 1]
+                          - cu * dq_b[ci[:, 1] + 1, 1])) - rhs_c
+    tol = 1e-13 * scale
+    assert nu_b.min() >= 0.0
+    assert gaps.min() >= -tol
+    assert np.abs(gaps[nu_b > 0]).max() <= tol
+    assert (nu_b > 0).sum() >= na // 2
+    # the edge rows: f R_e . (dq_{e+1} - dq_e) = rhs_e (identities where held)
+    rows = f * np.einsum("ij,ij->i", R, dq_b[1:] - dq_b[:-1]) - rhs_e
+    free = (w[:-1].sum(axis=1) + w[1:].sum(axis=1)) > 0
+    assert np.abs(rows[free]).max() <= 1e-13 * scale * np.abs(R).max()
+
+
+def test_few_contacts_take_the_dense_solve():
+    """Below ``BAND_MIN`` contacts the dense Schur complement is the cheaper solve, and the
+    one taken."""
+    R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, mu0 = _folded(3, 200, 2.0, False)
+    k = contact.BAND_MIN - 1
+    args = (R, O, w, f, rhs_e, k, ci[:k], cu[:k], cn[:k], rhs_c[:k], ck, mu0[:k])
+    _dq, _nu, banded = _solve(args, True)
+    assert banded == 0 and ck.meta[contact._NDENSE] == 1
+
+
+def test_an_unsettled_active_set_is_handed_to_the_dense_solve():
+    """Two contacts on the same point with opposite normals (a node pressed from both
+    sides: no solution as equations) are refused by the banded solve, which says so by
+    returning False, and then solved by the dense one."""
+    R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, mu0 = _folded(5, 200, 2.0, False)
+    ci2 = np.concatenate([ci, ci[:1]])
+    cu2 = np.concatenate([cu, cu[:1]])
+    cn2 = np.concatenate([cn, -cn[:1]])
+    rhs2 = np.concatenate([rhs_c, [-rhs_c[0] + 0.01]])
+    mu2 = np.concatenate([mu0, [1.0]])
+    mu2[0] = 1.0
+    m = R.shape[0]
+    got = contact._band_lcp(R, O, w, f, rhs_e, na + 1, ci2, cu2, cn2, rhs2, ck,
+                            np.zeros(m + 2), np.zeros(na + 3), mu2,
+                            np.zeros(na + 1, dtype=np.int64), np.zeros(na + 1, dtype=np.int64),
+                            1e-18)
+    assert got is False
