@@ -216,7 +216,7 @@ def verdict(table, labels, tree="this tree"):
     an outcome reads)."""
     ref = table[labels[0], tree]
     out = []
-    for what, keys in (("up to t = %g" % WINDOWS[0], [("M", WINDOWS[0]), ("xL", WINDOWS[0])]),
+    for what, keys in ((f"up to t = {WINDOWS[0]:g}", [("M", WINDOWS[0]), ("xL", WINDOWS[0])]),
                        ("at the end", [("M", "end"), ("xL", "end")])):
         ok = [c for c in labels[2:] if table[c, tree][1]["status"] == "at_rest"
               and all(abs(table[c, tree][2][k]) <= abs(ref[2][k]) for k in keys)]

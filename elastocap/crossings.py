@@ -207,7 +207,7 @@ def _self_crossing(p):
                 & _overlap([v[:, :nb - d] for v in bbox], [v[:, d:] for v in bbox]))
         f, K = np.nonzero(keep)
         cand.append((f, K, K + d))
-    f, i, j = _expand(*(np.concatenate(c) for c in zip(*cand)))
+    f, i, j = _expand(*(np.concatenate(c) for c in zip(*cand, strict=True)))
     f, i, j = _segment_pairs(coords, coords, f, i, j, m, m, True)
     hit, _u = _cross(p, p, f, i, j)
     out[frames[f[hit]]] = True

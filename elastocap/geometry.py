@@ -53,8 +53,8 @@ def arc_offsets(tau, v):
     and the offset across as the product 2 sin(tau (1 + v) / 2) sin(tau (1 - v) / 2) /
     sin(tau) (the difference of cosines loses its digits as tau -> 0), so that a nearly flat
     interface keeps its digits; |tau| < 1e-8 takes the leading order (the parabola, exact
-    to O(tau^2) relative). tau and v broadcast against each other (numpy arrays or floats), so one call draws
-    the arcs of many frames (``tau[:, None]``).
+    to O(tau^2) relative). tau and v broadcast against each other (numpy arrays or
+    floats), so one call draws the arcs of many frames (``tau[:, None]``).
     """
     tau = np.asarray(tau, dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):

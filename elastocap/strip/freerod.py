@@ -116,7 +116,8 @@ def contact_summary(rod: DiscreteStrip, branch) -> dict:
     for seg in branch.segments:
         for k, d in enumerate(seg.delta):
             pts.append({"delta": float(d), "index": int(seg.index_strong[k]),
-                        "energy": float(seg.energy[k]), "measure": encapsulation_measure(seg.u[k][1], seg.u[k][-1]),
+                        "energy": float(seg.energy[k]),
+                        "measure": encapsulation_measure(seg.u[k][1], seg.u[k][-1]),
                         "pairs": seg.pairs.tolist(),
                         "forces": seg.pair_forces[k].tolist() if seg.pair_forces.size else []})
         for k in range(1, seg.delta.size):

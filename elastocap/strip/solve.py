@@ -556,7 +556,7 @@ class _Tridiagonal:
         return eigh_tridiagonal(self.d, self.e, select="i", select_range=(0, 0))[1][:, 0]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _sytrd_work(n: int) -> int:
     """dsytrd's optimal workspace for size n (LAPACK's query)."""
     return max(1, int(_sytrd_lwork(n, lower=1)[0]))

@@ -431,9 +431,9 @@ def active_set_problem(strip: DiscreteStrip, active, pairs=None) -> tuple[Functi
     -------
     problem : continuation.FunctionProblem
         Unknowns v = (u, r_A, mu_P), shape (n + 1 + |A| + |P|,); ``hessian`` /
-        ``constraint_jacobian`` give the Lagrangian Hessian (N, N) and the held constraints' gradients (|A|, N),
-        N = n + 1, as in F (below; for the stability index); observables ``energy``,
-        ``min_reaction`` (force), ``min_gap`` (length).
+        ``constraint_jacobian`` give the Lagrangian Hessian (N, N) and the held
+        constraints' gradients (|A|, N), N = n + 1, as in F (below; for the stability
+        index); observables ``energy``, ``min_reaction`` (force), ``min_gap`` (length).
     tools : dict
         ``split(v) -> (u, r)`` with r of shape (n + 1,), ``join(u, r, mu=None) -> v``,
         ``mu(v)`` (the pair forces, shape (m,)), ``A`` (the held node indices), ``P`` (the
@@ -2023,8 +2023,9 @@ def _past_loss(strip: DiscreteStrip, branches, labels, folds, kind_changes, end:
     through it (:func:`solved_crossings`, the same state to 1e-7; traced then, and added
     to ``branches``, ``labels``, ``folds`` and ``kind_changes``, if the search did not
     reach it: :func:`_trace_landing`) is followed up in Delta as the deposition's was
-    (:func:`_stretch_up`), to its own end; and so on, up to MAX_JUMPS. Where a mirror-symmetric state loses stability the two tilts are followed
-    apart (``sides``, push +1 and -1; later jumps keep the side's way).
+    (:func:`_stretch_up`), to its own end; and so on, up to MAX_JUMPS. Where a
+    mirror-symmetric state loses stability the two tilts are followed apart (``sides``,
+    push +1 and -1; later jumps keep the side's way).
 
     Returns ``{"value", "how", "sides", "open_up_to"}``. Each side: ``push``, ``jumps``
     (``from``: the end's Delta, ``how`` it ended, ``landing``: Delta of the descent,

@@ -6,9 +6,9 @@ import stat
 import sys
 
 import pytest
+from lock_holder import lock_held_by_another_process
 
 from dynamics import cache
-from lock_holder import lock_held_by_another_process
 
 SRC = "VALUE = 42\n"
 

@@ -363,7 +363,7 @@ def test_with_delta_is_the_constructed_strip():
     ref = DiscreteStrip(60, L, 2.0, 0.8, 0.36, 40.0)
     assert C == ref and C.to_dict() == ref.to_dict()
     assert C.s_nodes is S.s_nodes and C._load is S._load
-    for a, b in zip(C.derivatives(u), ref.derivatives(u)):
+    for a, b in zip(C.derivatives(u), ref.derivatives(u), strict=True):
         assert np.array_equal(a, b)
     assert np.array_equal(C.gauge, ref.gauge)
     for bad in (2 * (L - 2.0) + 0.1, 4.1, float("nan")):
