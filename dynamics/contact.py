@@ -522,6 +522,26 @@ def _lu_solve(S, b, piv, na):
     return True
 
 
+@numba.njit(cache=True, inline="always")
+def _edge_row(R, O, w, f, e, m):
+    """Row e of the edge rows of :func:`_bordered_solve`, ``f R_e . (dq_{e+1} - dq_e)`` in
+    the edge multipliers: ``(a, b, c, skip)``, the identity (skip 1) where both ends are
+    held in the directions that matter."""
+    rx = R[e, 0]
+    rz = R[e, 1]
+    wx0 = w[e, 0]
+    wz0 = w[e, 1]
+    wx1 = w[e + 1, 0]
+    wz1 = w[e + 1, 1]
+    bb = f * (rx * (wx0 + wx1) * O[e, 0] + rz * (wz0 + wz1) * O[e, 1])
+    scale = f * (abs(rx * O[e, 0]) + abs(rz * O[e, 1])) * (wx0 + wx1 + wz0 + wz1)
+    if abs(bb) <= 1e-12 * scale or scale == 0.0:
+        return 0.0, 1.0, 0.0, 1.0
+    aa = -f * (rx * wx0 * O[e - 1, 0] + rz * wz0 * O[e - 1, 1]) if e > 0 else 0.0
+    cc = -f * (rx * wx1 * O[e + 1, 0] + rz * wz1 * O[e + 1, 1]) if e < m - 1 else 0.0
+    return aa, bb, cc, 0.0
+
+
 @numba.njit(cache=True)
 def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, mu0, eq,
                     hint, pgs_tol, band=True):
@@ -590,24 +610,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     # cp = c * gi), the forward sweeps of z = T^-1 rhs_e and of Y (independent chains of
     # operations, overlapped by the processor), then the back substitutions together
     for e in range(m):
-        rx = R[e, 0]
-        rz = R[e, 1]
-        wx0 = w[e, 0]
-        wz0 = w[e, 1]
-        wx1 = w[e + 1, 0]
-        wz1 = w[e + 1, 1]
-        bb = f * (rx * (wx0 + wx1) * O[e, 0] + rz * (wz0 + wz1) * O[e, 1])
-        scale = f * (abs(rx * O[e, 0]) + abs(rz * O[e, 1])) * (wx0 + wx1 + wz0 + wz1)
-        if abs(bb) <= 1e-12 * scale or scale == 0.0:
-            a[e] = 0.0
-            b[e] = 1.0
-            c[e] = 0.0
-            skip[e] = 1.0
-        else:
-            a[e] = -f * (rx * wx0 * O[e - 1, 0] + rz * wz0 * O[e - 1, 1]) if e > 0 else 0.0
-            c[e] = -f * (rx * wx1 * O[e + 1, 0] + rz * wz1 * O[e + 1, 1]) if e < m - 1 else 0.0
-            b[e] = bb
-            skip[e] = 0.0
+        a[e], b[e], c[e], skip[e] = _edge_row(R, O, w, f, e, m)
         den = b[e] - (a[e] * cp[e - 1] if e > 0 else 0.0)
         if den == 0.0 or not np.isfinite(den):
             return False
@@ -974,26 +977,8 @@ def _band_lcp(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, mu0, eq, hin
     aidx = ck.band_int[5]
     amap = ck.band_int[6]
     dq = ck.band_dq
-    # the edge rows (as in the dense solve)
     for e in range(m):
-        rx = R[e, 0]
-        rz = R[e, 1]
-        wx0 = w[e, 0]
-        wz0 = w[e, 1]
-        wx1 = w[e + 1, 0]
-        wz1 = w[e + 1, 1]
-        bb = f * (rx * (wx0 + wx1) * O[e, 0] + rz * (wz0 + wz1) * O[e, 1])
-        scale = f * (abs(rx * O[e, 0]) + abs(rz * O[e, 1])) * (wx0 + wx1 + wz0 + wz1)
-        if abs(bb) <= 1e-12 * scale or scale == 0.0:
-            ea[e] = 0.0
-            eb[e] = 1.0
-            ec[e] = 0.0
-            eskip[e] = 1.0
-        else:
-            ea[e] = -f * (rx * wx0 * O[e - 1, 0] + rz * wz0 * O[e - 1, 1]) if e > 0 else 0.0
-            ec[e] = -f * (rx * wx1 * O[e + 1, 0] + rz * wz1 * O[e + 1, 1]) if e < m - 1 else 0.0
-            eb[e] = bb
-            eskip[e] = 0.0
+        ea[e], eb[e], ec[e], eskip[e] = _edge_row(R, O, w, f, e, m)
     # the contacts' diagonal (C W C^T)_kk and the shift of the dense solve
     smax = 0.0
     for k in range(na):
