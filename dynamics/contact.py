@@ -523,6 +523,12 @@ def _lu_solve(S, b, piv, na):
 
 
 @numba.njit(cache=True, inline="always")
+def _node_weight(t, u):
+    """Weight of a contact row's node t (0 the node, 1 and 2 the segment's ends)."""
+    return 1.0 if t == 0 else (-(1.0 - u) if t == 1 else -u)
+
+
+@numba.njit(cache=True, inline="always")
 def _edge_row(R, O, w, f, e, m):
     """Row e of the edge rows of :func:`_bordered_solve`, ``f R_e . (dq_{e+1} - dq_e)`` in
     the edge multipliers: ``(a, b, c, skip)``, the identity (skip 1) where both ends are
@@ -543,8 +549,8 @@ def _edge_row(R, O, w, f, e, m):
 
 
 @numba.njit(cache=True)
-def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, mu0, eq,
-                    hint, pgs_tol, band=True):
+def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, mu0, eq, hint,
+                    pgs_tol, band=True):
     """Solve the edge rows (tridiagonal) bordered by ``na`` contact rows.
 
     Edge row e: ``f R_e . (dq_{e+1} - dq_e) = rhs_e[e]``, contact row k:
@@ -552,7 +558,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     ``dq = W (G_O^T dl + C^T dm)`` (``G_O`` the edge directions ``O``).  Rows of edges
     with both ends held are identities (``dl = 0``).  Returns False if a pivot vanished.
 
-    ``lcp``: the contact rows are complementarity conditions on the total multipliers
+    The contact rows are complementarity conditions on the total multipliers
     ``mu0 + dm`` (equalities where ``eq``), solved by projected Gauss-Seidel started from
     the solution of the equations of a guessed set of pushing contacts (``mu0 > 0``, ``eq``
     or ``hint``) when that solution pushes, else from ``mu0``.  With :data:`BAND_MIN`
@@ -561,7 +567,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
     it refuses.
     """
     m = R.shape[0]
-    if band and lcp and na >= BAND_MIN and _band_lcp(R, O, w, f, rhs_e, na, ci, cu, cn,
+    if band and na >= BAND_MIN and _band_lcp(R, O, w, f, rhs_e, na, ci, cu, cn,
                                                      rhs_c, ck, dl, dm, mu0, eq, hint,
                                                      pgs_tol):
         ck.meta[_NBAND] += 1
@@ -570,7 +576,6 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
         ck.meta[_NDENSE] += 1
     vec = ck.vec
     S = ck.S
-    piv = ck.piv
     a = vec[0]
     b = vec[1]
     c = vec[2]
@@ -597,7 +602,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
         nz = cn[k, 1]
         for t in range(3):
             q = i if t == 0 else (j if t == 1 else j + 1)
-            wq = 1.0 if t == 0 else (-(1.0 - u) if t == 1 else -u)
+            wq = _node_weight(t, u)
             px = w[q, 0] * wq * nx
             pz = w[q, 1] * wq * nz
             if q - 1 >= 0:
@@ -654,7 +659,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
             s = 0.0
             for t in range(3):
                 q = ik if t == 0 else (jk if t == 1 else jk + 1)
-                wk = 1.0 if t == 0 else (-(1.0 - uk) if t == 1 else -uk)
+                wk = _node_weight(t, uk)
                 wl = ((1.0 if q == il else 0.0) - ((1.0 - ul) if q == jl else 0.0)
                       - (ul if q == jl + 1 else 0.0))
                 if wl != 0.0:
@@ -666,7 +671,7 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
         # B2 row k: d g_k / d dl_e = sum_q w_q n_k . W_q (O_{q-1} [e = q-1] - O_q [e = q])
         for t in range(3):
             q = ik if t == 0 else (jk if t == 1 else jk + 1)
-            wk = 1.0 if t == 0 else (-(1.0 - uk) if t == 1 else -uk)
+            wk = _node_weight(t, uk)
             for side in range(2):
                 e = q - 1 if side == 0 else q
                 if e < 0 or e >= m:
@@ -678,53 +683,46 @@ def _bordered_solve(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, lcp, m
                     for l in range(na):
                         S[k, l] -= coef * Y[e, l]
         dm[k] = rk
-    if lcp:
-        # the contacts' linear complementarity problem in the total multipliers
-        # nu = mu0 + dm: w = S nu + q >= 0 (the gaps after the update), nu >= 0 (not for
-        # the equality rows), w nu = 0; projected Gauss-Seidel, which copes with redundant
-        # contacts (the positions are unique, the multipliers need not be)
-        q = vec[6]
-        # complementarity residual at the start (mu0): the gap -rhs where the contact
-        # pushes (or is an equality), the penetration elsewhere
-        qmax = 0.0
+    # the contacts' linear complementarity problem in the total multipliers
+    # nu = mu0 + dm: w = S nu + q >= 0 (the gaps after the update), nu >= 0 (not for
+    # the equality rows), w nu = 0; projected Gauss-Seidel, which copes with redundant
+    # contacts (the positions are unique, the multipliers need not be)
+    q = vec[6]
+    # complementarity residual at the start (mu0): the gap -rhs where the contact
+    # pushes (or is an equality), the penetration elsewhere
+    qmax = 0.0
+    for k in range(na):
+        r0 = abs(dm[k]) if (mu0[k] > 0.0 or eq[k] != 0) else max(dm[k], 0.0)
+        qmax = max(qmax, r0)
+    for k in range(na):
+        acc = -dm[k]
+        for l in range(na):
+            acc -= S[k, l] * mu0[l]
+        q[k] = acc
+        dm[k] = mu0[k]
+    # to the tolerance, or a millionth of that residual: the Newton iteration around
+    # this solve refines what is left
+    tol = max(pgs_tol, 1e-6 * qmax)
+    _lcp_guess(S, q, dm, na, mu0, eq, hint, REGULARISATION * smax, tol, ck)
+    for _sweep in range(PGS_MAX_SWEEPS):
+        ch = 0.0
         for k in range(na):
-            r0 = abs(dm[k]) if (mu0[k] > 0.0 or eq[k] != 0) else max(dm[k], 0.0)
-            qmax = max(qmax, r0)
-        for k in range(na):
-            acc = -dm[k]
+            skk = S[k, k] + REGULARISATION * smax
+            if skk <= 0.0:
+                continue
+            r = q[k]
             for l in range(na):
-                acc -= S[k, l] * mu0[l]
-            q[k] = acc
-            dm[k] = mu0[k]
-        # to the tolerance, or a millionth of that residual: the Newton iteration around
-        # this solve refines what is left
-        tol = max(pgs_tol, 1e-6 * qmax)
-        _lcp_guess(S, q, dm, na, mu0, eq, hint, REGULARISATION * smax, tol, ck)
-        for _sweep in range(PGS_MAX_SWEEPS):
-            ch = 0.0
-            for k in range(na):
-                skk = S[k, k] + REGULARISATION * smax
-                if skk <= 0.0:
-                    continue
-                r = q[k]
-                for l in range(na):
-                    r += S[k, l] * dm[l]
-                new = dm[k] - r / skk
-                if eq[k] == 0 and new < 0.0:
-                    new = 0.0
-                c_ = abs(new - dm[k]) * skk
-                ch = c_ if c_ > ch else ch
-                dm[k] = new
-            if ch <= tol:
-                break
-        for k in range(na):
-            dm[k] -= mu0[k]
-    else:
-        shift = REGULARISATION * smax
-        for k in range(na):
-            S[k, k] += shift
-        if not _lu_solve(S, dm, piv, na):
-            return False
+                r += S[k, l] * dm[l]
+            new = dm[k] - r / skk
+            if eq[k] == 0 and new < 0.0:
+                new = 0.0
+            c_ = abs(new - dm[k]) * skk
+            ch = c_ if c_ > ch else ch
+            dm[k] = new
+        if ch <= tol:
+            break
+    for k in range(na):
+        dm[k] -= mu0[k]
     # dl = z - Y^T dm
     for e in range(m):
         s = z[e]
@@ -802,7 +800,7 @@ def _lcp_guess(S, q, nu, na, mu0, eq, hint, shift, tol, ck):
 # ----------------------------------------------------------------------------- banded solve
 
 @numba.njit(cache=True)
-def _band_incidence(na, ci, cu, ck):
+def _band_incidence(na, ci, ck):
     """Node -> contacts lists of the ``na`` contacts (CSR in ``ck.band_int`` rows 0 and
     1: row 0 the node pointers, row 1 the entries ``3 k + t``, t the contact's node: 0 its
     node, 1 and 2 its segment's ends)."""
@@ -825,12 +823,6 @@ def _band_incidence(na, ci, cu, ck):
             q = ci[k, 0] if t == 0 else ci[k, 1] + t - 1
             lst[fill[q]] = 3 * k + t
             fill[q] += 1
-
-
-@numba.njit(cache=True, inline="always")
-def _node_weight(t, u):
-    """Weight of a contact row's node t (0 the node, 1 and 2 the segment's ends)."""
-    return 1.0 if t == 0 else (-(1.0 - u) if t == 1 else -u)
 
 
 @numba.njit(cache=True, inline="always")
@@ -996,7 +988,7 @@ def _band_lcp(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, mu0, eq, hin
             rscale = max(rscale, abs(rhs_e[e]))
     for k in range(na):
         rscale = max(rscale, abs(rhs_c[k]))
-    _band_incidence(na, ci, cu, ck)
+    _band_incidence(na, ci, ck)
     ptr = ck.band_int[0]
     lst = ck.band_int[1]
     pos = ck.band_int[3]
@@ -1433,7 +1425,7 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, max_depth, ck):
             if it == MAX_NEWTON or (it > 4 and err_e <= tol_e and err_g >= 0.5 * g_prev):
                 break
             g_prev = err_g
-            if not _bordered_solve(R, O, w, 2.0, phi, na, ci, cu, cn, rc, ck, dl, dm, True,
+            if not _bordered_solve(R, O, w, 2.0, phi, na, ci, cu, cn, rc, ck, dl, dm,
                                    ck.mu_pos, eq, ck.flags[2], 0.1 * tol_g):
                 ck.meta[_FAIL] = 3
                 return -1
@@ -1690,8 +1682,8 @@ def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates
             res = max(res, abs(rc[k]) if (bm[k] > 0.0 or eq[k] != 0) else rc[k])
         if refinement > 0 and res <= tol_v:
             break
-        if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, True, bm,
-                               eq, ck.flags[2], 0.1 * tol_v):
+        if not _bordered_solve(R, R, w, 1.0, rhs_e, nc, ci, cu, cn, rc, ck, dl, dm, bm, eq,
+                               ck.flags[2], 0.1 * tol_v):
             ck.meta[_FAIL] = 3
             return -1
         for k in range(nc):

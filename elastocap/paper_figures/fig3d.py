@@ -53,7 +53,7 @@ FIG3D_THICKNESS = 0.0157
 #: moving (folded strips sliding on each other), at 150 the 12 of 176 listed in the guide.
 FIG3D_CONTACT_T_MAX = 150.0
 #: The contact diagram's verification levels: 200, 300 and 450 edges, as without contact.
-#: A strip lying on itself at 300 edges (x = 6, 154 contacts) runs in 37 s of CPU with the
+#: A strip lying on itself at 300 edges (x = 6, 158 contacts) runs in 37 s of CPU with the
 #: banded contact solve (``dynamics.contact``), against 229 s with the dense one alone.
 FIG3D_CONTACT_LEVELS = 3
 
