@@ -191,6 +191,20 @@ def test_fig4_floppy_encapsulation(figs):
     out, _, _ = figs
     s = json.loads((out / "fig4_fig5.json").read_text())
     assert s["fig4B"]["outcome"] == "encapsulated" == s["fig4B"]["companion_outcome"]
+    # fast mode: the sweep's one level, so nothing confirms the outcome under refinement
+    (row,) = s["fig4B"]["levels"]
+    assert row["n_edges"] == s["fig4B"]["n_edges"] == s["made_by"]["resolutions"][0]["n_edges"]
+    assert s["fig4B"]["settled_from_edges"] is None
+
+
+def test_an_outcome_settles_only_where_a_refined_run_agrees():
+    from elastocap.paper_figures.fig4_fig5 import settled_from
+
+    assert settled_from(["open", "open", "open"]) == 0
+    assert settled_from(["encapsulated", "open", "open", "open"]) == 1
+    assert settled_from(["open", "open", "encapsulated"]) is None  # the finest alone
+    assert settled_from(["open", "undecided", "undecided"]) is None  # never a result
+    assert settled_from(["open"]) is None  # no refined run
 
 
 def test_contact_comparison_fast(figs):

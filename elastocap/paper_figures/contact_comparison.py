@@ -34,6 +34,7 @@ import numpy as np
 
 from elastocap.io import atomic_path, write_json
 from elastocap.paper_figures import record
+from elastocap.paper_figures.fig4_fig5 import FIG45_T_MAX, FIG45_T_MAX_LONG
 from elastocap.scene import MAX_THICKNESS_OVER_LENGTH, build_scene, load_scene
 
 #: The experiments' strip thickness h = 55 um (paper, main text and Methods) in each
@@ -71,10 +72,6 @@ OUTCOME_DELTAS = (3.0, 3.5, 3.8, 4.0, 4.5)
 OUTCOME_EDGES = (100, 200)
 #: Figs 4-5 resolutions besides the Fig 3d one (133 edges).
 STRIP_EDGES_FINE = 200
-#: Figs 4-5 final time (Fig 3d's), and the longer one a run still moving then is repeated
-#: to (damping 0.1 gives a decay time of mu / damping = 10: 400 is 40 of them).
-FIG45_T_MAX = 100.0
-STRIP_T_MAX_LONG = 400.0
 #: A third resolution for D' with contact (see :func:`main`).
 DPRIME_CHECK_EDGES = 300
 #: Arc length (scene units) beyond which two points of the rod count as different arms:
@@ -261,9 +258,9 @@ def strip_scene(name: str, config: str, n_edges: int | None, fast: bool,
     """The Fig 4/5 run ``name`` (:data:`elastocap.paper_figures.fig4_fig5.RUNS`) under a
     contact configuration, at the Fig 3d resolution or ``n_edges`` (automatic dt), to the
     figure's t_max (100) or ``t_max``."""
-    from elastocap.paper_figures.fig4_fig5 import RUNS, _scene
+    from elastocap.paper_figures.fig4_fig5 import RUNS, run_scene
 
-    scene = _scene(RUNS[name], fast)
+    scene = run_scene(RUNS[name], fast)
     over = dict(STRIP_CONFIGS[config])
     if t_max is not None:
         over["numerics.t_max"] = t_max
@@ -281,7 +278,7 @@ def strip_scene(name: str, config: str, n_edges: int | None, fast: bool,
 
 def strip_runs(cache: RunCache, names, edges, fast: bool):
     """The Fig 4/5 runs under every configuration at each resolution (None: Fig 3d's), and
-    again to ``STRIP_T_MAX_LONG`` where a run had not come to rest by t_max = 100.
+    again to ``FIG45_T_MAX_LONG`` where a run had not come to rest by t_max = 100.
 
     Returns ``{(name, config, n, t_max): record}`` and the rows for the JSON (the record
     without the final shape, with the companion criterion's outcome on the final shape and,
@@ -302,9 +299,9 @@ def strip_runs(cache: RunCache, names, edges, fast: bool):
                     row.update(run=name, config=c, resolution=n, t_max=t_max,
                                companion_outcome=comp.outcome)
                     rows.append(row)
-                    if rec["at_rest"] or t_max >= STRIP_T_MAX_LONG:
+                    if rec["at_rest"] or t_max >= FIG45_T_MAX_LONG:
                         break
-                    t_max = STRIP_T_MAX_LONG
+                    t_max = FIG45_T_MAX_LONG
     for row in rows:
         coarse = runs.get((row["run"], row["config"], edges[0], row["t_max"]))
         if row["resolution"] != edges[0] and coarse is not None:
@@ -487,8 +484,8 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     plot_supp(supp, deltas, configs, out_edges[-1], png)
     files.append(png)
     png2 = out / "contact-fig4-fig5.png"
-    # each run's final shape: to t_max = 100, or to STRIP_T_MAX_LONG where it was repeated
-    last = {(nm, c): strip.get((nm, c, strip_edges[-1], STRIP_T_MAX_LONG),
+    # each run's final shape: to t_max = 100, or to FIG45_T_MAX_LONG where it was repeated
+    last = {(nm, c): strip.get((nm, c, strip_edges[-1], FIG45_T_MAX_LONG),
                                strip[(nm, c, strip_edges[-1], FIG45_T_MAX)])
             for nm in strip_names for c in STRIP_CONFIGS}
     plot_strip(last, strip_names, tuple(STRIP_CONFIGS), png2, fast)
@@ -502,7 +499,7 @@ def main(out_dir, fast: bool = False) -> list[Path]:
 
         # at 200 edges: the 133-edge run ends in another shape, 200 and 300 agree
         sc = strip_scene("fig5Dprime", "contact-ignore", STRIP_EDGES_FINE, fast,
-                         t_max=STRIP_T_MAX_LONG)
+                         t_max=FIG45_T_MAX_LONG)
         res = run_impact(sc)
         png3 = out / "contact-fig5Dprime.png"
         frame_strip(res, sc, png3, k=8,
@@ -524,7 +521,7 @@ def main(out_dir, fast: bool = False) -> list[Path]:
                               strip_configs=STRIP_CONFIGS, dstar_grid=DSTAR_GRID, dstar_tol=tol,
                               dstar_plan=plan, dstar_configs=DSTAR_CONFIGS,
                               outcome_edges=out_edges, strip_edges=strip_edges,
-                              strip_t_max=(FIG45_T_MAX, STRIP_T_MAX_LONG),
+                              strip_t_max=(FIG45_T_MAX, FIG45_T_MAX_LONG),
                               gap_rtol=GAP_RTOL, code_digest=cache.code), indent=1)
 
     write(None)  # everything above, before the costly check below
@@ -534,14 +531,14 @@ def main(out_dir, fast: bool = False) -> list[Path]:
         from elastocap.criteria import companion_outcome
 
         sc = strip_scene("fig5Dprime", "contact-ignore", DPRIME_CHECK_EDGES, fast,
-                         t_max=STRIP_T_MAX_LONG)
+                         t_max=FIG45_T_MAX_LONG)
         rec = cache.run(sc)
         x = np.asarray(rec["final_positions"])
         row = {k: v for k, v in rec.items() if k != "final_positions"}
         row["companion_outcome"] = companion_outcome(x, sc).outcome
         row["shape_vs"] = {str(n or "fig3d"): shape_difference(x, np.asarray(
-            strip[("fig5Dprime", "contact-ignore", n, STRIP_T_MAX_LONG)]["final_positions"]))
-            for n in strip_edges if ("fig5Dprime", "contact-ignore", n, STRIP_T_MAX_LONG)
+            strip[("fig5Dprime", "contact-ignore", n, FIG45_T_MAX_LONG)]["final_positions"]))
+            for n in strip_edges if ("fig5Dprime", "contact-ignore", n, FIG45_T_MAX_LONG)
             in strip}
         write(row)
     files.append(js)

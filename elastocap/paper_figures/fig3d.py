@@ -13,7 +13,7 @@ open) is checked at 1.5x the edges and half the time step, and again at each fol
 level up to ``FIG3D_LEVELS``, and where it moves, located at that level and checked at the
 next. The frame-independent criterion's thresholds are computed on the same store and
 drawn too. Figs 4 and 5 (:mod:`elastocap.paper_figures.fig4_fig5`) run at
-the same resolution (:func:`fig3d_resolution`).
+every level of the same resolutions (:func:`fig3d_resolutions`).
 
 The figure ``fig3d-contact`` (:mod:`elastocap.paper_figures.fig3d_contact`) is the same
 diagram with rod self-contact: the strip's thickness ``FIG3D_THICKNESS`` (the paper's
@@ -72,11 +72,13 @@ def fig3d_scene(accuracy: str, contact: bool = False):
     return load_scene("fig3-strip", fig3d_overrides(accuracy, contact))
 
 
-def fig3d_resolution(accuracy: str, fast: bool = False, contact: bool = False):
-    """The :class:`~elastocap.sweep.Resolution` (level 0) every run of the figure uses."""
+def fig3d_resolutions(accuracy: str, fast: bool = False, contact: bool = False):
+    """The :class:`~elastocap.sweep.Resolution` of every level of the figure: level 0, which
+    every run of the sweep uses, and the verification levels (none in ``fast`` mode)."""
     scene = fig3d_scene(accuracy, contact)
     xs, we = ([3.0], [1.0, 2.5]) if fast else (FIG3D_X, FIG3D_WE)
-    return sweep_resolutions(scene, grid_points(scene, xs, we_sqrts=we)[0])[0]
+    levels = 0 if fast else (FIG3D_CONTACT_LEVELS if contact else FIG3D_LEVELS)
+    return sweep_resolutions(scene, grid_points(scene, xs, we_sqrts=we)[0], levels)
 
 
 def fig3d_sweeps(store, accuracy: str, fast: bool = False, contact: bool = False,
