@@ -30,6 +30,9 @@ class UsageError(Exception):
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # argparse would print usage and exit itself
+        if message.endswith("expected one argument"):
+            # a value that starts with "-" (a negative bound) reads as an option
+            message += " (a value starting with '-' is written with '=', e.g. --range=-1)"
         raise UsageError(message)
 
 
@@ -109,11 +112,16 @@ def _trace(args, scene=None, progress=None, step=(0, 0)):
     progress = NoProgress() if progress is None else progress
     prange = tuple(args.range) if args.range else None
     note = f"tracing the branches of {scene.name} in {args.param} (compiles on first use)"
+    strip = scene.effects.gravity > 0 or scene.effects.ground
+    # bad input is refused before the first progress line (one line on stderr)
+    if strip:
+        # the strip on the ground: one model (the discrete strip, every contact topology)
+        from elastocap.strip.trace import check_trace_request, trace_contact_branches
+    else:
+        from elastocap.statics.branches import check_trace_request
+    check_trace_request(scene, args.param, prange)
     with heartbeat(progress, *step, note):
-        if scene.effects.gravity > 0 or scene.effects.ground:
-            # the strip on the ground: one model (the discrete strip, every contact topology)
-            from elastocap.strip.trace import trace_contact_branches
-
+        if strip:
             return trace_contact_branches(scene, args.param, prange,
                                           progress=lambda line: progress(*step, line))
         return trace_branches(scene, args.param, prange)
@@ -392,7 +400,8 @@ def cmd_figures(args) -> int:
 
 
 def cmd_overlay(args) -> int:
-    from elastocap.overlay import parse_range, run_overlay
+    from elastocap.overlay import run_overlay
+    from elastocap.sweep.grid import parse_range
 
     scene = _load(args)
     deltas = parse_range(args.delta, "--delta")
@@ -434,8 +443,9 @@ def cmd_overlay(args) -> int:
         for r in res["runs"]:
             print(
                 f"  Δ = {r['wetted_length']:.4f}: {r['outcome']:<12} M = "
-                f"{r['final_measure']:+.5f} -> {r['branch_reached']} (shape distance "
-                f"{r['shape_distance']:.2e})"
+                f"{r['final_measure']:+.5f} -> "
+                + (f"{r['branch_reached']} (shape distance {r['shape_distance']:.2e})"
+                   if r["branch_reached"] else f"no equilibrium reached: {r['reach_note']}")
             )
         for f in res.get("files", []):
             print(f"wrote {f}")
@@ -447,7 +457,7 @@ def cmd_demo(args) -> int:
     the selection threshold, and the overlay of the impacts on the equilibria."""
     from elastocap.frames import frame_strip
     from elastocap.impact import run_impact
-    from elastocap.overlay import classify_final_state
+    from elastocap.overlay import reached_equilibrium
     from elastocap.statics.branches import trace_branches
     from elastocap.statics.plot import plot_branch_set
 
@@ -476,13 +486,13 @@ def cmd_demo(args) -> int:
         with heartbeat(progress, 1 + len(runs), 4, f"impact at Δ = {d:g}"), \
                 _CompilesAnnounced():
             r = run_impact(sc)
-        reached = classify_final_state(bs, d, r.simulation.positions[-1])
+        reached = reached_equilibrium(bs, d, r)
         runs.append(
             {
                 "wetted_length": d,
                 "outcome": r.outcome,
                 "final_measure": r.final_measure,
-                "branch_reached": reached and reached["label"],
+                **reached,
                 "t_end": r.t_end,
                 "wall_time_s": r.wall_time_s,
             }
@@ -493,7 +503,8 @@ def cmd_demo(args) -> int:
         files.append(str(strip))
         say(
             f"  impact at Δ = {d:g}: {r.outcome} (M = {r.final_measure:+.4f}, reaches "
-            f"{reached and reached['label']}, {r.wall_time_s:.1f} s)"
+            f"{reached['branch_reached'] or 'no equilibrium: ' + str(reached['reach_note'])}, "
+            f"{r.wall_time_s:.1f} s)"
         )
     from elastocap.overlay import plot_overlay
 

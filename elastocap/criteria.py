@@ -230,14 +230,16 @@ class ImpactVerdict:
 
 
 def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,
-                   rise_ok, rise_note, rod_crossing_time) -> ImpactVerdict:
+                   rise_ok, rise_note, rod_crossing_time,
+                   rest_advice="raise numerics.t_max, or add damping") -> ImpactVerdict:
     """The outcome of an impact, decided in one place.
 
     ``open``/``encapsulated`` only when the run succeeded numerically (else ``failed``),
     came to rest before ``t_max``, its energy audit passed (``rise_ok``; ``rise_note`` says
     what failed), and the verdict was settled before the rod first crossed itself (the
     model has no rod-rod contact: a verdict reached after such a crossing rests on motion
-    the model cannot represent).  Otherwise ``undecided`` with the reason.  The verdict
+    the model cannot represent).  Otherwise ``undecided`` with the reason (``rest_advice``:
+    what to try when the run did not come to rest).  The verdict
     at the last frame is the outcome; it is "settled" at the first frame after which it no
     longer changes (``decision_time``).
     """
@@ -251,8 +253,7 @@ def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,
         return ImpactVerdict(FAILED, criterion, bool(at_rest), decision)
     reasons = []
     if not at_rest:
-        reasons.append(f"the run did not come to rest by t_max = {t_max:g} (raise "
-                       "numerics.t_max, or add damping)")
+        reasons.append(f"the run did not come to rest by t_max = {t_max:g} ({rest_advice})")
     if not rise_ok:
         reasons.append(f"the energy audit failed: {rise_note}")
     if rod_crossing_time is not None and decision >= rod_crossing_time:

@@ -4,7 +4,9 @@ The rod starts straight along +x (S = 0 at x = 0) and at rest, on the ground z =
 scene has one; the drop is already spread to its wetted length Delta (the fast spreading is
 over, paper main text) and the rod is released. The run ends when the kinetic energy stays
 below ``numerics.rest_kinetic`` (times the scale gamma Delta, the capillary energy
-available) for ``numerics.rest_time``, or at ``numerics.t_max``.
+available; under damping strong enough for the rod to creep, lowered by
+:func:`rest_damping_ratio` squared) for ``numerics.rest_time``, or at ``numerics.t_max``.
+Gravity without a ground is refused (the rod would fall for ever).
 
 Three parts: :func:`build_effects` (the scene's effects, the capillary one by name),
 running (:func:`dynamics.simulate` with the scene's method, retried with a smaller
@@ -261,15 +263,25 @@ def impact_settings(scene: Scene) -> dict:
     num = scene.numerics
     L = scene.rod.length
     delta = scene.drop.wetted_length
+    if scene.effects.gravity > 0.0 and not scene.effects.ground:
+        raise SceneError(
+            "effects.gravity", scene.effects.gravity,
+            "without effects.ground the rod and the drop fall freely and never come to rest; "
+            "a uniform field on the uniform rod (and its damping) changes nothing in the "
+            "rod's own frame: set effects.ground = true for the strip on the ground, or "
+            "effects.gravity = 0 for the free rod")
     n = edge_count(scene)
     n_min = MIN_WET_EDGES * L / delta * (1.0 - 1e-12)
     n_min = math.ceil(n_min) if n_min < 1e15 else n_min
     if n < n_min:
+        runs = _fewest_runnable_edges(scene, n_min) if n_min < 1e15 else n_min
+        also = (f"; the fewest that run with the automatic dt: n_edges = {runs}"
+                if runs != n_min else "")
         raise SceneError(
             "numerics.n_edges", n,
             f"the wet interval Delta = {delta:.4g} spans {n * delta / L:.3g} edges; at least "
-            f"{MIN_WET_EDGES} are needed (n_edges >= {n_min:.15g} for L = {L:.4g}), or 0 for the "
-            "accuracy preset")
+            f"{MIN_WET_EDGES} are needed (n_edges >= {n_min:.15g} for L = {L:.4g}){also}; or 0 "
+            "for the accuracy preset")
     h = L / n
     # the bound depends on the shortest edge only: one edge of length h stands for the n
     # equal ones (an array of n would allocate 8n bytes before a huge n can be refused)
@@ -288,8 +300,8 @@ def impact_settings(scene: Scene) -> dict:
         raise SceneError(
             "numerics.dt",
             num.dt,
-            f"above the stability bound of bending dt_max = {dt_max:.4g} for {n:.6g} edges "
-            f"(h = {h:.4g}); use dt <= {dt_max:.4g} or 0 for automatic",
+            f"above the stability bound of bending dt_max = {dt_max:.8g} for {n:.6g} edges "
+            f"(h = {h:.4g}); use dt <= {round_down(dt_max):.4g} or 0 for automatic",
         )
     _check_dt(scene, dt, n)
     scale = scene.drop.line_tension * delta
@@ -300,9 +312,34 @@ def impact_settings(scene: Scene) -> dict:
         "dt": dt,
         "dt_max": dt_max,
         "t_max": num.t_max,
-        "rest_kinetic": num.rest_kinetic * scale,
+        "rest_kinetic": num.rest_kinetic * scale / rest_damping_ratio(scene) ** 2,
         "rest_time": num.rest_time,
     }
+
+
+def rest_damping_ratio(scene: Scene) -> float:
+    """How much less of an unbalanced force the kinetic rest test sees under the scene's
+    damping than without it: ``max(1, c T / mu)`` (c = ``effects.damping``, T =
+    ``numerics.rest_time``, mu the mass per length).
+
+    Without damping an unbalanced force f per length, starting from rest, gives the rod a
+    speed f T / mu within the rest window; with damping c it moves at most at the terminal
+    speed f / c. Once c T / mu > 1 the rod can creep at kinetic energies below the
+    threshold, far from equilibrium (the overdamped approach to rest). The threshold is
+    divided by the square of this ratio, so that the test resolves the same unbalanced
+    force at any damping; at c T / mu <= 1 (every built-in scene) it is unchanged."""
+    c = scene.effects.damping
+    return max(1.0, c * scene.numerics.rest_time / scene.rod.mass_per_length)
+
+
+def rest_advice(scene: Scene) -> str:
+    """What to try when an impact run does not come to rest by ``numerics.t_max``."""
+    ratio = rest_damping_ratio(scene)
+    if ratio > 1.0:
+        return (f"raise numerics.t_max: effects.damping = {scene.effects.damping:g} is strong "
+                f"(c rest_time / mu = {ratio:.3g} > 1), the rod creeps to rest slowly, and "
+                "less damping can reach it sooner")
+    return "raise numerics.t_max, or add damping"
 
 
 #: Fewest steps within numerics.rest_time: "at rest" must rest on several samples of the
@@ -311,6 +348,39 @@ MIN_REST_STEPS = 4
 #: Most steps of one impact run (with automatic retries at dt/2 and dt/4 on top): at the
 #: measured 5-8 us a step, 2e9 steps are 3-4 hours; a dt that needs more has underflowed.
 MAX_IMPACT_STEPS = 2 * 10**9
+
+
+def _fewest_runnable_edges(scene: Scene, n_min: int) -> int:
+    """The fewest edges from ``n_min`` on with which :func:`impact_settings` accepts the
+    scene (with few edges the automatic dt, which scales as h^2, can exceed what the rest
+    criterion needs); ``n_min`` when none up to 2^20 n_min does."""
+
+    def runs(k):
+        try:
+            impact_settings(scene.with_overrides({"numerics.n_edges": int(k)}))
+            return True
+        except SceneError:
+            return False
+
+    if runs(n_min):
+        return n_min
+    lo, hi = n_min, 2 * n_min
+    while not runs(hi):
+        lo, hi = hi, 2 * hi
+        if hi > 2**20 * n_min:
+            return n_min
+    while hi - lo > 1:  # the accepted counts from the first one on: the automatic dt falls
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if runs(mid) else (mid, hi)
+    return hi
+
+
+def round_down(x: float, digits: int = 4) -> float:
+    """``x > 0`` rounded down to ``digits`` significant digits: a bound quoted in a message
+    that the quoted value itself meets."""
+    q = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
+    y = math.floor(x / q) * q
+    return y if float(f"{y:.{digits}g}") <= x else y - q
 
 
 def _check_dt(scene: Scene, dt: float, n: int) -> None:
@@ -333,8 +403,8 @@ def _check_dt(scene: Scene, dt: float, n: int) -> None:
             key, value,
             f"gives a time step dt = {dt:.4g}{origin}: fewer than {MIN_REST_STEPS} steps in "
             f"numerics.rest_time = {num.rest_time:g}, over which the rest criterion reads "
-            f"the kinetic energy; dt <= {num.rest_time / MIN_REST_STEPS:.4g} is needed: set "
-            "numerics.dt")
+            f"the kinetic energy; dt <= {round_down(num.rest_time / MIN_REST_STEPS):.4g} is "
+            "needed: set numerics.dt")
     steps = num.t_max / dt
     if steps > MAX_IMPACT_STEPS:
         default_t_max = Numerics().t_max
@@ -924,6 +994,7 @@ def _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames,
         success=sim.success and rise <= ENERGY_RISE_FAIL * scale,
         at_rest=sim.status == "at_rest",
         t_max=st["t_max"],
+        rest_advice=rest_advice(scene),
         rise_ok=rise_ok,
         rise_note="" if rise_ok else _rise_message(rise, scale, t_rise),
         rod_crossing_time=rod_t,

@@ -246,6 +246,15 @@ def _settings(scene: Scene, lo: float, hi: float, span: float) -> ContinuationSe
     )
 
 
+def check_trace_request(scene: Scene, parameter: str = "drop.wetted_length",
+                        prange=None) -> None:
+    """Raise the :class:`SceneError` that :func:`trace_branches` would raise for this scene,
+    parameter and range, without tracing: for a caller that checks its input before it
+    reports progress."""
+    problem = problem_for(scene, parameter)
+    _resolve_range(scene, parameter, prange, problem.get(parameter))
+
+
 def _resolve_range(scene: Scene, parameter: str, prange, p_scene: float):
     """The search range: the requested (or default) range clipped to the admissible region.
 

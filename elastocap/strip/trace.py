@@ -1203,7 +1203,9 @@ NOT_HANDLED = (
 
 
 # --------------------------------------------------------------------------- checks
-def _check(scene: Scene, parameter: str, prange):
+def check_trace_request(scene: Scene, parameter: str, prange):
+    """Raise the :class:`SceneError` that :func:`trace_contact_branches` would raise for this
+    scene, parameter and range, without tracing; else return the range (lo, hi)."""
     if not (scene.effects.gravity > 0.0 and scene.effects.ground):
         raise SceneError("effects", {"gravity": scene.effects.gravity,
                                      "ground": scene.effects.ground},
@@ -2232,7 +2234,7 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         one, each with ``error_estimate``), ``open_branch_end``, ``kind_changes`` and
         ``events``; ``problem`` is the :class:`ContactProblem` at n edges.
     """
-    lo, hi = _check(scene, parameter, prange)
+    lo, hi = check_trace_request(scene, parameter, prange)
     t0 = time.perf_counter()
     strip = discrete_strip_for(scene, n)
     n_fine = None

@@ -119,6 +119,9 @@ def _validate(args):
 
     xs = parse_range(args.x, "--x")
     we = parse_range(args.we, "--we") if args.we is not None else None
+    if we is not None and we[0] < 0.0:
+        raise SceneError("--we", args.we, "expected We^1/2 >= 0 (the square root of the Weber "
+                         "number of the impact)")
     delta = parse_range(args.delta, "--delta") if args.delta is not None else None
     for text in args.overrides:
         key, value = parse_override(text)

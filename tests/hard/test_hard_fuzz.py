@@ -240,7 +240,6 @@ def _expected_refusal(cmd, over, rng):
     """The key the library refuses the command's inputs with (None: accepted), from the
     library's own checks: the scene, the range, and the resource estimates."""
     from elastocap.cli_args import check_resources
-    from elastocap.overlay import parse_range as overlay_range
     from elastocap.sweep.engine import check_sweep_resources, plan_sweep
     from elastocap.sweep.grid import parse_range
 
@@ -252,7 +251,7 @@ def _expected_refusal(cmd, over, rng):
             check_sweep_resources(scene, points, res)
         elif cmd == "overlay":
             scene = load_scene("supp-fig5", over)
-            deltas = overlay_range(_range_text(*rng), "--delta")
+            deltas = parse_range(_range_text(*rng), "--delta")
             if deltas.max() > scene.rod.length:
                 return "--delta"
             for d in (deltas.min(), deltas.max()):

@@ -1,0 +1,86 @@
+"""When an impact run is at rest: the kinetic rest test resolves the same unbalanced force at
+any damping, so an overdamped rod that creeps is not called at rest; checked against the
+statics (the one stable state of the scene) by a damped run that does come to rest. And the
+inputs that can never come to rest, or the bounds quoted in refusals, are what they say."""
+
+import pytest
+
+from elastocap.impact import impact_settings, rest_damping_ratio, round_down, run_impact
+from elastocap.overlay import REACH_DISTANCE, reached_equilibrium
+from elastocap.scene import SceneError, load_scene
+from elastocap.statics.branches import trace_branches
+
+# supp-fig5 with a larger drop: one branch, stable everywhere, no fold; at Delta = L the
+# drop wraps the whole rod (measured: M = 1.339 on the statics' branch)
+OVERDAMPED = {"drop.area": 2.0, "drop.wetted_length": 4.6, "numerics.accuracy": "draft"}
+
+
+@pytest.mark.parametrize("damping, ratio", [(0.0, 1.0), (0.2, 1.0), (1.0, 1.0), (4.0, 4.0),
+                                            (100.0, 100.0)])
+def test_the_rest_threshold_falls_as_the_damping_time_drops_below_the_rest_window(damping,
+                                                                                  ratio):
+    base = load_scene("supp-fig5", {"effects.damping": 0.0})
+    sc = load_scene("supp-fig5", {"effects.damping": damping})
+    assert rest_damping_ratio(sc) == ratio
+    # unchanged (bit for bit) at c T / mu <= 1: every built-in scene
+    assert impact_settings(sc)["rest_kinetic"] == impact_settings(base)["rest_kinetic"] / ratio**2
+    # the same law in the other two quantities: mass per length and the rest window
+    heavy = load_scene("supp-fig5", {"effects.damping": damping, "rod.mass_per_length": 4.0})
+    assert rest_damping_ratio(heavy) == max(1.0, damping / 4.0)
+    long = load_scene("supp-fig5", {"effects.damping": damping, "numerics.rest_time": 3.0})
+    assert rest_damping_ratio(long) == max(1.0, 3.0 * damping)
+
+
+def test_an_overdamped_rod_that_creeps_is_not_at_rest_and_ends_on_the_statics_state():
+    """c = 100: the rod creeps towards its only stable state for hundreds of time units at
+    kinetic energies far below the undamped threshold (that threshold called it at rest, and
+    open, at t = 173 with M = 0.575). To t_max = 200 it is undecided, with advice that fits
+    strong damping; to t_max = 3000 it rests on the statics' state."""
+    bs = trace_branches(load_scene("supp-fig5", OVERDAMPED), error_estimates=False)
+    short = run_impact(load_scene("supp-fig5", {**OVERDAMPED, "effects.damping": 100.0}))
+    assert short.outcome == "undecided" and not short.at_rest
+    assert "did not come to rest by t_max = 200" in short.undecided_reason
+    assert "effects.damping = 100 is strong" in short.undecided_reason
+    assert "add damping" not in short.undecided_reason
+    not_reached = reached_equilibrium(bs, 4.6, short)
+    assert not_reached["branch_reached"] is None
+    assert not_reached["reach_note"].startswith("the run did not come to rest")
+
+    long = run_impact(load_scene("supp-fig5", {**OVERDAMPED, "effects.damping": 100.0,
+                                               "numerics.t_max": 3000.0}))
+    assert long.at_rest and long.outcome == "encapsulated" and long.t_end > 200.0
+    reached = reached_equilibrium(bs, 4.6, long)
+    assert reached["branch_reached"] is not None and reached["reach_note"] is None
+    # the final shape is the equilibrium's to the draft resolution (50 edges against the
+    # spectral statics; measured: shape 5.0e-4 rad, measure 5.0e-4)
+    assert reached["shape_distance"] < 2e-3 < REACH_DISTANCE
+    assert long.final_measure == pytest.approx(reached["branch_measure"], abs=2e-3)
+
+
+def test_gravity_without_a_ground_is_refused():
+    with pytest.raises(SceneError) as err:
+        impact_settings(load_scene("supp-fig5", {"effects.gravity": 0.5}))
+    assert err.value.key == "effects.gravity"
+    assert "effects.ground = true" in err.value.allowed
+
+
+def test_the_bounds_quoted_in_refusals_are_accepted():
+    draft = {"drop.wetted_length": 4.0, "numerics.accuracy": "draft"}
+    with pytest.raises(SceneError, match=r"use dt <= 0\.003808 or 0"):
+        impact_settings(load_scene("supp-fig5", {**draft, "numerics.dt": 0.003809}))
+    impact_settings(load_scene("supp-fig5", {**draft, "numerics.dt": 0.003808}))
+    with pytest.raises(SceneError, match="automatic dt: n_edges = 6;"):
+        impact_settings(load_scene("supp-fig5", {**draft, "numerics.n_edges": 2}))
+    impact_settings(load_scene("supp-fig5", {**draft, "numerics.n_edges": 6}))
+    with pytest.raises(SceneError):  # 5 spans the wet interval, but its dt is too long
+        impact_settings(load_scene("supp-fig5", {**draft, "numerics.n_edges": 5}))
+    # the thickness limit L / 10 itself, whatever the rounding of 0.1 x L
+    for L in (4.6, 14.3, 0.7, 3.3):
+        assert load_scene("supp-fig5", {"rod.length": L, "drop.wetted_length": 0.5 * L,
+                                        "rod.thickness": L / 10}).rod.thickness == L / 10
+
+
+@pytest.mark.parametrize("x", [0.0038088, 0.25, 3.3333e-7, 123456.7, 0.99999999, 4.0, 1e-300])
+def test_round_down_quotes_a_value_that_meets_the_bound(x):
+    y = round_down(x)
+    assert float(f"{y:.4g}") <= x and x - y <= 1e-3 * x
