@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -237,11 +236,12 @@ def _folds_curve(args, expected, rtol) -> int:
 
 
 def cmd_folds(args) -> int:
-    from elastocap.testing import DEFAULT_RTOL, compare_folds, load_folds
+    from elastocap.testing import DEFAULT_RTOL, check_rtol, compare_folds, load_folds
 
-    rtol = DEFAULT_RTOL if args.rtol is None else args.rtol
-    if not (rtol > 0 and math.isfinite(rtol)):
-        raise UsageError(f"--rtol: got {rtol!r}; expected a finite number > 0")
+    rtol = check_rtol(DEFAULT_RTOL if args.rtol is None else args.rtol, "--rtol")
+    if args.rtol is not None and not args.check:
+        raise UsageError(f"--rtol: got {args.rtol!r}; it is the tolerance of --check FILE, "
+                         "which is not given")
     if args.curve:
         # bad reference file: exit 2 before any work
         expected = load_folds(args.check, key="cusps") if args.check else None
@@ -249,7 +249,10 @@ def cmd_folds(args) -> int:
     if args.out:
         raise UsageError("--out: only with --curve (use `elastocap branches --out` for "
                          "branch files)")
-    expected = load_folds(args.check) if args.check else None  # bad file: exit 2 before work
+    # a bad file, or one made for another scene or parameter: exit 2 before any work
+    expected = load_folds(args.check, made_for={"scene": _load(args).name,
+                                                "parameter": args.param}) \
+        if args.check else None
     progress = _progress(args, "folds")
     bs = _trace_or_fail(args, progress=progress, step=(0, 1))
     if bs is None:
@@ -786,8 +789,10 @@ def command_options(parser: argparse.ArgumentParser | None = None) -> dict[str, 
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; return the exit code (0 ok, 1 check failed, 2 bad input)."""
+    """Run the command line; return the exit code (0 ok, 1 check failed, 2 bad input, 130
+    interrupted)."""
     parser = build_parser()
+    args = None
     try:
         args = parser.parse_args(argv)
         if args.command is None:
@@ -800,6 +805,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into e.g. `head`: not an error of ours
         sys.stderr.close()
         return 0
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's code for SIGINT
+        resume = (" (the runs finished so far are in the store: the same command resumes)"
+                  if getattr(args, "command", None) == "sweep" else "")
+        print(f"elastocap: interrupted{resume}", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

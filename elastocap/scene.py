@@ -355,10 +355,68 @@ class Numerics:
     integrator: str = "rattle"
 
 
+def _refuse_change(*_args, **_kwargs):
+    raise TypeError("a Scene is immutable, its data too: build another one with "
+                    "Scene.with_overrides (or from a copy: json.loads(scene.to_json()))")
+
+
+class _ReadOnly:
+    """What the read-only TOML containers share: a copy is the object itself, a pickle
+    rebuilds it read-only from the plain container (``_plain``)."""
+
+    __slots__ = ()
+
+    def __reduce__(self):
+        return (type(self), (self._plain(self),))
+
+    def __copy__(self):
+        return self
+
+    def __deepcopy__(self, memo):
+        return self
+
+
+class FrozenTable(_ReadOnly, dict):
+    """A read-only copy of a TOML table (its tables and arrays read-only too): a ``dict``
+    for every reader (``json.dumps``, ``==``, ``isinstance``), but any change raises
+    ``TypeError``. Copies and pickles stay read-only."""
+
+    __slots__ = ()
+    _plain = dict
+
+    def __init__(self, items=()):
+        super().__init__((k, _frozen(v)) for k, v in dict(items).items())
+
+    __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = _refuse_change
+    __ior__ = _refuse_change
+
+
+class FrozenArray(_ReadOnly, list):
+    """A read-only TOML array (see :class:`FrozenTable`)."""
+
+    __slots__ = ()
+    _plain = list
+
+    def __init__(self, items=()):
+        super().__init__(_frozen(v) for v in items)
+
+    __setitem__ = __delitem__ = append = extend = insert = remove = pop = clear = _refuse_change
+    sort = reverse = __iadd__ = __imul__ = _refuse_change
+
+
+def _frozen(value):
+    if isinstance(value, dict):
+        return value if isinstance(value, FrozenTable) else FrozenTable(value)
+    if isinstance(value, list):
+        return value if isinstance(value, FrozenArray) else FrozenArray(value)
+    return value
+
+
 @dataclass(frozen=True)
 class Scene:
     """A validated, immutable scene. ``data`` is the resolved input table (overrides applied)
-    from which the scene was built; it is what output files record."""
+    from which the scene was built, read-only (:class:`FrozenTable`); it is what output
+    files record."""
 
     name: str
     rod: Rod
@@ -369,6 +427,10 @@ class Scene:
     experiment: units.Experiment | None = None
     description: str = ""
     data: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self):
+        # a copy the caller cannot change under the scene (its digest, its runs)
+        object.__setattr__(self, "data", _frozen(dict(self.data)))
 
     @property
     def distance_from_end(self) -> float:

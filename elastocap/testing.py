@@ -13,7 +13,7 @@ import json
 import math
 from pathlib import Path
 
-__all__ = ["FoldMismatch", "assert_folds", "compare_folds", "load_folds"]
+__all__ = ["FoldMismatch", "assert_folds", "check_rtol", "compare_folds", "load_folds"]
 
 #: Default relative tolerance: the default accuracy gives folds to ~1e-12; 1e-8 leaves room
 #: for another machine's round-off and a coarser preset while catching any real change.
@@ -33,20 +33,26 @@ def _fold_list(data, origin: str, key: str = "folds") -> list[dict]:
         isinstance(f, dict)
         and isinstance(f.get("value"), int | float)
         and not isinstance(f.get("value"), bool)
+        and math.isfinite(f["value"])
         for f in folds
     ):
         raise ValueError(
             f"{origin}; expected a JSON object with a key '{key}' (the output of "
             "`elastocap folds --json`" + (" --curve ...)" if key != "folds" else ")")
-            + " or a list of points (objects each with a numeric 'value', as find_folds "
-            "returns)"
+            + " or a list of points (objects each with a finite numeric 'value', as "
+            "find_folds returns)"
         )
     return folds
 
 
-def load_folds(path, option: str = "--check", key: str = "folds") -> list[dict]:
+def load_folds(path, option: str = "--check", key: str = "folds",
+               made_for: dict | None = None) -> list[dict]:
     """Read the fold list of a JSON file: the output of ``elastocap folds --json``, a
-    ``branches.json``, or a saved list of folds (``json.dump(find_folds(scene), f)``)."""
+    ``branches.json``, or a saved list of folds (``json.dump(find_folds(scene), f)``).
+
+    ``made_for``: e.g. ``{"scene": "supp-fig5", "parameter": "drop.wetted_length"}``; a file
+    that records another value of one of these keys is refused (a reference made for
+    another scene or parameter compares folds that have nothing to do with each other)."""
     p = Path(path)
     origin = f"{option}: got {str(path)!r}"
     try:
@@ -61,20 +67,37 @@ def load_folds(path, option: str = "--check", key: str = "folds") -> list[dict]:
         raise ValueError(f"{origin}; not UTF-8 text (expected a JSON file)") from None
     except (json.JSONDecodeError, RecursionError) as err:
         raise ValueError(f"{origin}; not valid JSON ({err})") from None
+    if isinstance(data, dict):
+        for k, want in (made_for or {}).items():
+            if k in data and data[k] != want:
+                raise ValueError(f"{origin}; it was made for {k} {data[k]!r}, this run is "
+                                 f"{k} {want!r}: give the reference of this {k}")
     return _fold_list(data, origin, key)
+
+
+def check_rtol(rtol, option: str = "rtol") -> float:
+    """``rtol`` as a float, or ValueError unless it is a finite number > 0."""
+    if isinstance(rtol, bool) or not isinstance(rtol, int | float) or not (
+            math.isfinite(rtol) and rtol > 0):
+        raise ValueError(f"{option}: got {rtol!r}; expected a finite number > 0")
+    return float(rtol)
 
 
 def compare_folds(found, expected, rtol=DEFAULT_RTOL, unlocated=()) -> tuple[bool, str]:
     """Compare two fold lists. Returns (match, table) where table is printable text.
 
     Each expected fold is paired with the nearest found one (each found fold used once);
-    it matches when their relative difference is at most ``rtol``. An expected fold with no
+    it matches when their relative difference is at most ``rtol`` and, where both record
+    it, the stability changes the same way (else ``STABILITY``). An expected fold with no
     match is reported ``UNLOCATED`` (with the reason) when the new run has an unlocated
     point near it (``unlocated``: the ``unlocated`` list of a branch set), else ``MISSING``
     or ``MISMATCH``; a found fold nobody expected is ``UNEXPECTED``.
     """
-    f = sorted(float(x["value"]) for x in found)
-    e = sorted(float(x["value"]) for x in expected)
+    rtol = check_rtol(rtol)
+    found = sorted(found, key=lambda x: float(x["value"]))
+    expected = sorted(expected, key=lambda x: float(x["value"]))
+    f = [float(x["value"]) for x in found]
+    e = [float(x["value"]) for x in expected]
     unl = [u for u in unlocated if u.get("kind", "fold") in ("fold", "branch_point")]
     free = list(range(len(f)))
     lines = [f"{'#':>3}  {'expected':>20}  {'found':>20}  {'rel. diff':>10}  status"]
@@ -85,6 +108,13 @@ def compare_folds(found, expected, rtol=DEFAULT_RTOL, unlocated=()) -> tuple[boo
         rel = abs(f[j] - ev) / max(abs(ev), 1e-300) if j is not None else math.nan
         if j is not None and rel <= rtol:
             free.remove(j)
+            have, want = found[j].get("stability_change"), expected[k].get("stability_change")
+            if want is not None and have is not None and str(have) != str(want):
+                ok = False
+                lines.append(f"{k:>3}  {ev:>20.12g}  {f[j]:>20.12g}  {rel:>10.2e}  STABILITY")
+                notes.append(f"fold {ev:.12g}: the stability changes {have} in this run, "
+                             f"{want} in the reference")
+                continue
             lines.append(f"{k:>3}  {ev:>20.12g}  {f[j]:>20.12g}  {rel:>10.2e}  ok")
             continue
         ok = False

@@ -196,3 +196,36 @@ def test_every_toolkit_error_pickles_with_its_fields():
     for cls in (StaticsError, StoreError, JacobianError, CacheError):
         back = pickle.loads(pickle.dumps(cls("what went wrong")))
         assert type(back) is cls and str(back) == "what went wrong"
+
+
+def test_a_scene_and_its_data_cannot_be_changed():
+    """``data`` is what a scene was built from and what its runs record: read-only, nested
+    tables and arrays too, through copies and pickles; a caller's dict changed later does
+    not change the scene."""
+    import copy
+    import json
+    import pickle
+
+    from elastocap.scene import build_scene, load_scene
+
+    sc = load_scene("supp-fig5")
+    for change in (lambda d: d.__setitem__("name", "x"), lambda d: d["rod"].update(length=9.0),
+                   lambda d: d["drop"].pop("area"), lambda d: d.clear(),
+                   lambda d: d.setdefault("effects", {})):
+        with pytest.raises(TypeError, match="a Scene is immutable"):
+            change(sc.data)
+    for other in (copy.deepcopy(sc.data), copy.copy(sc.data), pickle.loads(pickle.dumps(sc)).data):
+        with pytest.raises(TypeError):
+            other["rod"]["length"] = 9.0
+        assert other == sc.data
+    raw = json.loads(sc.to_json())
+    raw["drop"]["events"] = [{"time": 0.5, "s2": 3.5}]
+    ev = build_scene(raw, "ev")
+    raw["rod"]["length"] = 9.0
+    raw["drop"]["events"].append({"time": 1.0, "s2": 3.6})
+    assert ev.rod.length == 4.6 and ev.data["rod"]["length"] == 4.6
+    assert len(ev.data["drop"]["events"]) == 1
+    with pytest.raises(TypeError):
+        ev.data["drop"]["events"].append({"time": 1.0})
+    assert ev.with_overrides({"effects.damping": 0.3}).rod.length == 4.6
+    assert json.loads(ev.to_json()) == json.loads(json.dumps(ev.data))

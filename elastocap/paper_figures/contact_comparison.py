@@ -17,9 +17,10 @@ policies (``drop.interface_contact``):
 * **Figs 4 and 5**: the runs of :mod:`elastocap.paper_figures.fig4_fig5` (fig3-strip,
   damping 0.1, t_max = 100) at the Fig 3d resolution and at 200 edges.
 
-Every run is kept: the threshold runs in the sweep stores ``contact-comparison-nN.sqlite``,
-the others in ``contact-comparison-runs.jsonl`` (keyed by the scene digest and the code
-fingerprint of :mod:`elastocap.sweep.tasks`), so a second call recomputes nothing. Writes
+Every run is kept: the threshold runs in the sweep stores
+``contact-comparison-CONFIG-nN.sqlite`` (one store holds one scene), the others in
+``contact-comparison-runs.jsonl`` (keyed by the scene digest and the code fingerprint of
+:mod:`elastocap.sweep.tasks`), so a second call recomputes nothing. Writes
 ``contact-comparison.json``, ``contact-supp-fig5.png``, ``contact-fig4-fig5.png`` and
 ``contact-fig5Dprime.png``.
 """
@@ -208,14 +209,14 @@ class RunCache:
 def threshold(config: str, n_edges: int, out: Path, tol: float = DSTAR_TOL,
               grid=DSTAR_GRID) -> dict:
     """Delta* of supp-fig5 under ``config`` at ``n_edges``: the sweep's bisection on the
-    line x = L / 2 (one store per resolution). Returns the line's boundary record with the
-    final measures of its runs (to compare configurations run for run)."""
+    line x = L / 2 (one store per configuration and resolution). Returns the line's boundary
+    record with the final measures of its runs (to compare configurations run for run)."""
     from elastocap.sweep import run_sweep
 
     over = DSTAR_CONFIGS[config]
     scene = load_scene("supp-fig5", {**over, "numerics.n_edges": n_edges})
     res = run_sweep(scene, [SUPP_X], deltas=list(grid), refine_tol=tol, workers=1,
-                    store=out / f"contact-comparison-n{n_edges}.sqlite")
+                    store=out / f"contact-comparison-{config}-n{n_edges}.sqlite")
     b = res.boundary[0]
     decided = b.status == "bracketed"
     return {

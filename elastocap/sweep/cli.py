@@ -171,7 +171,7 @@ def _validate(args):
     # every run's memory and time steps at the finest level, smallest and largest Delta
     check_sweep_resources(scene, points, resolutions, getattr(args, "force", False))
     try:
-        ResultStore.check(store, store_resolution(resolutions))
+        ResultStore.check(store, store_resolution(resolutions, scene))
     except StoreError as err:
         raise ValueError(f"--store: {err}") from None
     return scene, xs, we, delta, experiments, out, store, levels, export

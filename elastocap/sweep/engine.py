@@ -43,6 +43,7 @@ run that kills its worker is identified; it is recorded failed after
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import numbers
 import os
@@ -298,7 +299,6 @@ class SweepResult:
             del d["x_over_leg"]
             return d
 
-        outcomes = {o: sum(r["outcome"] == o for r in self.runs) for o in OUTCOMES}
         verification = None
         if self.verify_levels:
             verification = {}
@@ -320,21 +320,8 @@ class SweepResult:
             "overrides": list(self.overrides),
             "store": self.store,
             "executor": self.executor,
-            "counts": {
-                "runs": len(self.runs),
-                "computed": self.computed,
-                "cached": self.cached,
-                "skipped": len(self.skipped),
-                "failed": len(self.failed),
-                "undecided": outcomes[UND],
-                "outcomes": outcomes,
-                # runs both criteria decide, differently (an undecided run is undecided
-                # under both)
-                "disagreements": sum(r["outcome"] != r["companion_outcome"]
-                                     and UND not in (r["outcome"], r["companion_outcome"])
-                                     for r in self.runs),
-                "verification": verification,
-            },
+            "counts": run_counts(self.runs, self.computed, self.cached, len(self.skipped),
+                                 len(self.failed), verification),
             "wall_time_s": self.wall_time_s,
             "runs": self.runs,
             "skipped": [s.to_dict() for s in self.skipped],
@@ -593,7 +580,10 @@ class Sweep:
                                 p, r, scenes[i], d, stage,
                                 f"the worker process died while running it, alone in the pool, "
                                 f"{crashes[d]} times ({type(broken).__name__}: {broken}); "
-                                "it kills its worker (memory? a crash in compiled code?)",
+                                "it kills its worker (memory? a crash in compiled code? "
+                                "a script that starts the sweep outside "
+                                "`if __name__ == \"__main__\":`, which each spawned worker "
+                                "runs again?)",
                                 crashes[d])
                             held.discard(d)
                         else:
@@ -961,12 +951,30 @@ def plan_sweep(scene: Scene, xs, *, we_sqrts=None, deltas=None, verify_levels: i
     return points, skipped, sweep_resolutions(scene, points, verify_levels)
 
 
-def store_resolution(resolutions: list[Resolution]) -> dict:
-    """What a store records of a sweep's resolution (its level 0)."""
+def store_resolution(resolutions: list[Resolution], scene: Scene | None = None) -> dict:
+    """What a store records of a sweep's resolution (its level 0) and, given ``scene``, of
+    its scene (:func:`store_scene`)."""
     r = resolutions[0]
-    return {"n_edges": r.n_edges, "dt": r.dt, "integrator": r.integrator,
-            "rule": "numerics.n_edges, else the accuracy preset's edges at the sweep's "
-                    "largest Delta; the automatic dt at those edges"}
+    out = {"n_edges": r.n_edges, "dt": r.dt, "integrator": r.integrator,
+           "rule": "numerics.n_edges, else the accuracy preset's edges at the sweep's "
+                   "largest Delta; the automatic dt at those edges"}
+    if scene is not None:
+        out["scene"] = store_scene(scene)
+    return out
+
+
+def store_scene(scene: Scene) -> dict:
+    """Every validated value of a sweep's scene (``section.key``, from
+    :meth:`~elastocap.scene.Scene.canonical`) but those the sweep sets at each point
+    (:data:`SWEPT_KEYS`) and the resolution's (``numerics.n_edges``, ``numerics.dt``,
+    recorded apart): a store holds the runs of one scene."""
+    out = {}
+    for sec, values in scene.canonical().items():
+        for k, v in (values or {}).items():
+            key = f"{sec}.{k}"
+            if key not in SWEPT_KEYS and key not in ("numerics.n_edges", "numerics.dt"):
+                out[key] = v
+    return json.loads(json.dumps(out, default=str))  # as the store reads it back
 
 
 def run_sweep(
@@ -1053,7 +1061,7 @@ def run_sweep(
     check_sweep_resources(scene, points, levels, force)
     if not isinstance(store, ResultStore):
         # a bad file, or one made at another resolution, is refused before any write
-        ResultStore.check(store, store_resolution(levels))
+        ResultStore.check(store, store_resolution(levels, scene))
     progress = progress or NoProgress()
     args = (scene, xs, variable, points, skipped, levels, run_fn, progress, refine_tol,
             criterion, verify_levels, bool(verify_every_level), list(overrides), t0)
@@ -1067,13 +1075,31 @@ def run_sweep(
         progress.close()
 
 
+def run_counts(runs, computed: int, cached: int, skipped: int, failed: int,
+               verification=None) -> dict:
+    """The ``counts`` of a sweep report: runs, how many were computed or taken from the
+    store, skipped, failed, undecided, each outcome, the runs both criteria decide
+    differently (an undecided run is undecided under both) and the verification verdicts."""
+    outcomes = {o: sum(r["outcome"] == o for r in runs) for o in OUTCOMES}
+    return {
+        "runs": len(runs), "computed": computed, "cached": cached, "skipped": skipped,
+        "failed": failed, "undecided": outcomes[UND], "outcomes": outcomes,
+        "disagreements": sum(r["outcome"] != r["companion_outcome"]
+                             and UND not in (r["outcome"], r["companion_outcome"])
+                             for r in runs),
+        "verification": verification,
+    }
+
+
 def report_from_store(store) -> dict:
     """The report of a sweep (the shape of :meth:`SweepResult.to_dict`) rebuilt from its
     store alone, without running anything: every stored run of the store's latest version,
     the failures, and each x line classified from its runs at the sweep's own level
     (:func:`~elastocap.sweep.refine.classify_line`: a bracket where the outcome changes once
-    from open to encapsulated). What a store does not record stays out: ``--set`` overrides,
-    the verification verdicts (``verified`` is False), the skipped points."""
+    from open to encapsulated), with the ``counts`` of those runs. What a store does not
+    record is left empty: ``overrides`` (None), the verification verdicts (``verified`` is
+    False), the skipped points (an empty list), each line's thresholds under the
+    frame-independent criterion."""
     from elastocap.sweep.refine import classify_line
 
     with _opened(store) as st:
@@ -1114,13 +1140,15 @@ def report_from_store(store) -> dict:
                 hi = next(r[key] for r in line if r[variable] == t.high)
                 b[f"{key}_low"], b[f"{key}_high"] = lo, hi
         boundary.append(b)
-    unit = length_unit(scene)[1]
+    unit_value, unit = length_unit(scene)
+    failed = [dict(f) for f in failures if f.get("version") == version]
     return {
         "scene": rows[0]["scene_name"], "version": version, "variable": variable,
-        "x_unit": unit, "criterion": "outcome", "resolution": resolution,
-        "verify_levels": 0, "runs": runs, "boundary": boundary,
-        "failed": [dict(f) for f in failures if f.get("version") == version],
-        "store": str(store),
+        "x_unit": unit, "x_unit_value": unit_value, "criterion": "outcome",
+        "resolution": resolution, "verify_levels": 0,
+        "counts": run_counts(runs, 0, len(runs), 0, len(failed)),
+        "runs": runs, "boundary": boundary, "failed": failed, "skipped": [],
+        "overrides": None, "store": str(store),
     }
 
 
@@ -1147,7 +1175,7 @@ def _opened(store):
 def _run(store, executor, scene, xs, variable, points, skipped, levels, run_fn, progress,
          refine_tol, criterion, verify_levels, every_level, overrides, t0) -> SweepResult:
     try:
-        store.ensure_resolution(store_resolution(levels))
+        store.ensure_resolution(store_resolution(levels, scene))
     except StoreError as err:
         raise ValueError(f"--store: {err}") from None
     sw = Sweep(scene, store, executor, levels, run_fn=run_fn, progress=progress,

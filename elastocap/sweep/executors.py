@@ -56,6 +56,28 @@ IN_FLIGHT_PER_SLOT = 2
 PARENT_POLL_S = 0.5
 
 
+def check_not_importing_main() -> None:
+    """Refuse to open a local pool from the top level of a script that a spawned worker is
+    importing. The local workers are started with "spawn", which runs the main script again
+    in each worker as ``__mp_main__``; a sweep at its top level would start in every worker
+    (and wait there for the runs the parent's sweep has claimed: a hang). The refusal ends
+    such a worker at once, and the parent's sweep stops (:class:`WorkerStartError`)."""
+    import inspect
+
+    frame = inspect.currentframe()
+    while frame is not None:
+        if frame.f_code.co_name == "<module>" and frame.f_globals.get("__name__") == "__mp_main__":
+            raise WorkerStartError(
+                "a local sweep was started while a worker process imported the main script "
+                "(workers are started with 'spawn', which runs the script again): put the "
+                "sweep under `if __name__ == \"__main__\":`")
+        frame = frame.f_back
+
+
+class WorkerStartError(RuntimeError):
+    """The local workers cannot start (see :func:`check_not_importing_main`)."""
+
+
 class MissingExtraError(ImportError):
     """An optional dependency is missing; the message names the extra to install."""
 
@@ -201,6 +223,7 @@ def open_executor(workers: int | None = None, scheduler: str | None = None):
             client.close()
         return
     n = check_workers(workers)
+    check_not_importing_main()
 
     def factory():
         return ProcessPoolExecutor(

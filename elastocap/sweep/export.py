@@ -87,6 +87,9 @@ def load(store, positions: bool = False):
     df = pd.DataFrame.from_records(rows, columns=names)
     if positions:
         df["final_positions"] = [decode_positions(b) for b in df["final_positions"]]
+    # an undecided run is undecided under both criteria (stores written before the run
+    # function said so hold the companion criterion's raw reading; its measure is kept)
+    df.loc[df["outcome"] == "undecided", "companion_outcome"] = "undecided"
     df["decided_after_crossing"] = df["decided_after_crossing"].map(
         lambda v: None if v is None or v != v else bool(v)).astype("object")
     return df

@@ -23,9 +23,10 @@ Guarantees and how they are met:
 * **Failures are recorded, not hidden.** A run that raised, or whose worker died on every
   attempt, is written to ``failures`` with the reason; it is not a result, so a later
   sweep tries it again (and a success replaces the failure).
-* **One resolution per store.** ``meta`` records the discretization of the sweep that made
-  the store (edges and time step of its base level); a sweep at another base resolution is
-  refused before anything is written (:meth:`ResultStore.check`). Runs of the finer
+* **One resolution and one scene per store.** ``meta`` records the discretization of the
+  sweep that made the store (edges and time step of its base level) and its scene's values
+  (but the swept keys); a sweep at another base resolution, or of another scene (another
+  ``--set``), is refused before anything is written (:meth:`ResultStore.check`). Runs of the finer
   verification levels carry their ``level``, ``n_edges`` and ``dt`` in their rows.
 * **Refused input writes nothing.** :meth:`ResultStore.check` opens an existing file
   without creating ``-wal`` / ``-shm`` files (``immutable`` when none exist).
@@ -134,15 +135,36 @@ def _schema_sql() -> str:
 RESOLUTION_KEYS = ("n_edges", "dt", "integrator")
 
 
+def _same_value(a, b) -> bool:
+    """Equal, floats to 1e-12 relative (a time step typed from its printed digits)."""
+    if isinstance(a, float) and isinstance(b, float):
+        return a == b or abs(a - b) <= 1e-12 * max(abs(a), abs(b))
+    return a == b
+
+
 def _same_resolution(path, stored: dict, wanted: dict) -> None:
-    diff = [k for k in RESOLUTION_KEYS if stored.get(k) != wanted.get(k)]
+    """Refuse a sweep whose resolution, or scene (where both record one), differs from
+    what made the store."""
+    diff = [k for k in RESOLUTION_KEYS if not _same_value(stored.get(k), wanted.get(k))]
     if diff:
         have = ", ".join(f"{k} = {stored.get(k)!r}" for k in RESOLUTION_KEYS)
         want = ", ".join(f"{k} = {wanted.get(k)!r}" for k in RESOLUTION_KEYS)
         raise StoreError(
             f"store {str(path)!r}: made at {have}, this sweep runs at {want}; one store "
             "holds one resolution: give another --store, or --set numerics.n_edges="
-            f"{stored.get('n_edges')} (and numerics.dt) to add to this one")
+            f"{stored.get('n_edges')} (and numerics.dt={stored.get('dt')!r}) to add to "
+            "this one")
+    have, want = stored.get("scene"), wanted.get("scene")
+    if have is not None and want is not None:
+        keys = sorted(set(have) | set(want))
+        diff = [k for k in keys if not _same_value(have.get(k), want.get(k))]
+        if diff:
+            shown = "; ".join(f"{k} = {have.get(k)!r} there, {want.get(k)!r} here"
+                              for k in diff[:3])
+            raise StoreError(
+                f"store {str(path)!r}: made by a sweep of another scene ({shown}"
+                f"{'; ...' if len(diff) > 3 else ''}); one store holds one scene: give "
+                "another --store")
 
 
 def _pid_alive(pid: int) -> bool:

@@ -147,7 +147,8 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
         units, ``outcome`` the paper's lab-frame criterion ("open", "encapsulated" or
         "undecided", the last with its ``reason``), ``n_edges`` and ``dt`` the
         discretization the run used, ``companion_outcome``
-        :func:`elastocap.criteria.companion_outcome`, ``version`` and ``code_digest`` the
+        :func:`elastocap.criteria.companion_outcome` (undecided where ``outcome`` is),
+        ``version`` and ``code_digest`` the
         worker's (checked against the sweep's: a cluster must run the same code).
     """
     # imported here: the sweep orchestrator never needs numba, and a worker imports it only
@@ -174,7 +175,9 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
         "outcome": res.outcome,
         # an undecided run says why (None for a decided one)
         "reason": res.undecided_reason,
-        "companion_outcome": comp.outcome,
+        # a run left undecided (not at rest, or decided after the rod crossed itself) is
+        # undecided under the companion criterion too; its measure is kept
+        "companion_outcome": res.outcome if res.outcome == "undecided" else comp.outcome,
         "n_edges": settings.get("n_edges"),
         "dt": settings.get("dt"),
         "final_measure": res.final_measure,

@@ -226,3 +226,49 @@ def test_dt_refusal_names_the_cause():
     with pytest.raises(SceneError) as err:  # preset edges, a stiff rod: the rod's doing
         impact_settings(load_scene("supp-fig5", {"rod.bending_modulus": 1e12}))
     assert err.value.key == "rod.bending_modulus"
+
+
+def test_ctrl_c_is_one_line_and_exit_130(monkeypatch, capsys):
+    import elastocap.cli as cli
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setitem(cli.COMMANDS, "show", (interrupted, cli.COMMANDS["show"][1]))
+    assert main(["show", "supp-fig5"]) == 130
+    err = capsys.readouterr().err
+    assert err == "elastocap: interrupted\n"
+
+
+def test_folds_check_refuses_a_reference_of_another_scene_or_a_broken_one(tmp_path, capsys):
+    import json
+
+    ref = {"scene": "fig3-strip", "parameter": "drop.wetted_length",
+           "folds": [{"value": 3.4697947515685, "stability_change": "1->0"}]}
+    cases = [({**ref}, "made for scene 'fig3-strip', this run is scene 'supp-fig5'"),
+             ({**ref, "scene": "supp-fig5", "parameter": "drop.area"},
+              "made for parameter 'drop.area'"),
+             ({"folds": [{"value": float("nan")}]}, "finite numeric 'value'")]
+    for k, (data, fragment) in enumerate(cases):
+        path = tmp_path / f"ref{k}.json"
+        path.write_text(json.dumps(data))
+        assert main(["folds", "supp-fig5", "--check", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("elastocap: error: --check: got") and fragment in err, err
+        assert err.count("\n") == 1
+    assert main(["folds", "supp-fig5", "--rtol", "1e-6"]) == 2
+    assert "it is the tolerance of --check FILE" in capsys.readouterr().err
+
+
+def test_a_fold_whose_stability_changes_the_other_way_does_not_match():
+    from elastocap.testing import FoldMismatch, assert_folds, compare_folds
+
+    found = [{"value": 3.4697947515685, "stability_change": "1->0"}]
+    ok, table = compare_folds(found, [{"value": 3.4697947515685, "stability_change": "0->1"}])
+    assert not ok and "STABILITY" in table and "1->0 in this run, 0->1 in the reference" in table
+    assert compare_folds(found, [{"value": 3.4697947515685}])[0]  # not recorded: not compared
+    for bad in (float("nan"), -1.0, 0.0, True, "1e-8"):
+        with pytest.raises(ValueError, match="rtol: got"):
+            assert_folds(found, found, rtol=bad)
+    with pytest.raises(FoldMismatch):
+        assert_folds(found, [{"value": 3.47}])

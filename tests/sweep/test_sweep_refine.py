@@ -330,6 +330,10 @@ def test_a_bare_store_redraws_the_same_diagram_without_running(tmp_path, pool, m
     assert [(b["x"], b["status"], b["low"], b["high"]) for b in rebuilt["boundary"]] == [
         (b.x, b.status, b.low, b.high) for b in res.boundary]
     assert _plotted(plot_phase_diagram(rebuilt)) == _plotted(plot_phase_diagram(res))
+    # the counts of the live report, every run now from the store
+    live = res.to_dict()["counts"]
+    assert rebuilt["counts"] == {**live, "computed": 0, "cached": live["runs"]}
+    assert rebuilt["x_unit_value"] == res.to_dict()["x_unit_value"]
     # the command: no sweep.json beside the store, the figure drawn from the store alone
     monkeypatch.chdir(tmp_path)
     assert main(["plot", "s.sqlite", "--out", "re"]) == 0

@@ -274,3 +274,16 @@ def test_the_command_refuses_another_resolution_with_exit_2_and_writes_nothing(t
     assert err.count("\n") == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
     assert store.read_bytes() == before
+
+
+def test_a_sweep_at_the_top_level_of_a_script_a_worker_imports_is_refused():
+    """A spawned worker runs the main script again as ``__mp_main__``: a local pool opened
+    there is refused at once (it would wait for the runs its parent has claimed)."""
+    from elastocap.sweep.executors import WorkerStartError, check_not_importing_main
+
+    check_not_importing_main()  # a test function: not a script's top level
+    code = compile("check_not_importing_main()", "script.py", "exec")
+    with pytest.raises(WorkerStartError, match='if __name__ == "__main__":'):
+        exec(code, {"__name__": "__mp_main__",
+                    "check_not_importing_main": check_not_importing_main})
+    exec(code, {"__name__": "__main__", "check_not_importing_main": check_not_importing_main})

@@ -132,3 +132,36 @@ def test_concurrent_writers_do_not_corrupt_or_duplicate(tmp_path):
         for r in st.rows(positions=True):
             assert r["final_positions"].shape == (50, 2)
             assert np.all(r["final_positions"] == int(r["scene_digest"], 16))
+
+
+def test_a_store_holds_one_scene_and_one_resolution(tmp_path):
+    """A sweep of another scene (another --set) on an existing store is refused before any
+    write, naming the values that differ; a time step typed from its printed digits is the
+    same resolution (floats to 1e-12)."""
+    from elastocap.scene import load_scene
+    from elastocap.sweep.engine import store_resolution, sweep_resolutions
+    from elastocap.sweep.grid import grid_points
+
+    def recorded(over):
+        scene = load_scene("supp-fig5", {"numerics.accuracy": "draft", **over})
+        points = grid_points(scene, [2.3], deltas=[3.0, 4.0])[0]
+        return store_resolution(sweep_resolutions(scene, points), scene)
+
+    path = tmp_path / "s.sqlite"
+    made = recorded({"effects.damping": 0.25})
+    with ResultStore(path) as st:
+        st.ensure_resolution(made)
+    before = path.read_bytes()
+    ResultStore.check(path, recorded({"effects.damping": 0.25}))  # the same scene
+    # the sweep sets the swept keys at every point: they are not the scene's
+    ResultStore.check(path, recorded({"effects.damping": 0.25, "drop.wetted_length": 1.0}))
+    with pytest.raises(StoreError, match=r"another scene \(effects\.damping = 0\.25 there, "
+                                         r"0\.3 here\); one store holds one scene"):
+        ResultStore.check(path, recorded({"effects.damping": 0.3}))
+    with pytest.raises(StoreError, match="another scene"):
+        with ResultStore(path) as st:
+            st.ensure_resolution(recorded({"effects.damping": 0.25, "drop.area": 1.4}))
+    ResultStore.check(path, dict(made, dt=float(f"{made['dt']:.13g}")))  # typed digits
+    with pytest.raises(StoreError, match="one store holds one resolution"):
+        ResultStore.check(path, dict(made, dt=made["dt"] * (1 + 1e-9)))
+    assert path.read_bytes() == before
