@@ -98,14 +98,18 @@ def classify_final_state(bs: BranchSet, delta: float, x_final: np.ndarray, equil
 def reached_equilibrium(bs: BranchSet, delta: float, result, equilibria=None) -> dict:
     """The stable equilibrium an impact run (:class:`~elastocap.impact.ImpactResult`) ended
     on: ``branch_reached`` (its label, or None), ``branch_measure`` and ``shape_distance``
-    of the nearest stable equilibrium, and ``reach_note``, why none was reached (None when
-    one was): no stable equilibrium at ``delta``, the run did not come to rest, or its final
-    shape lies further than :data:`REACH_DISTANCE` from every stable equilibrium."""
+    of the nearest admissible stable equilibrium (``equilibria``: those to compare with,
+    default every admissible stable one at ``delta``), and ``reach_note``, why none was
+    reached (None when one was): no such equilibrium at ``delta``, the run did not come to
+    rest, or its final shape lies further than :data:`REACH_DISTANCE` from every one."""
+    if equilibria is None:
+        # a state that crosses itself (inadmissible) is no state a rod can rest in
+        equilibria = [e for e in stable_equilibria(bs, delta) if e["admissible"]]
     near = classify_final_state(bs, delta, result.simulation.positions[-1], equilibria)
     if near is None:
         return {"branch_reached": None, "branch_measure": None, "shape_distance": None,
                 "nearest_branch": None,
-                "reach_note": f"no stable equilibrium at Delta = {delta:g}"}
+                "reach_note": f"no admissible stable equilibrium at Delta = {delta:g}"}
     note = None
     if not result.at_rest:
         note = f"the run did not come to rest ({result.status})"

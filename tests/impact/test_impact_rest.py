@@ -84,3 +84,21 @@ def test_the_bounds_quoted_in_refusals_are_accepted():
 def test_round_down_quotes_a_value_that_meets_the_bound(x):
     y = round_down(x)
     assert float(f"{y:.4g}") <= x and x - y <= 1e-3 * x
+
+
+def test_an_inadmissible_equilibrium_is_never_reached(monkeypatch):
+    """A stable state that crosses itself (inadmissible) is no state a rod rests in: the
+    overlay compares a final shape with the admissible stable equilibria only."""
+    import types
+
+    import numpy as np
+
+    import elastocap.overlay as ov
+
+    loop = {"label": "branch 1", "measure": -1.45, "admissible": False, "u": None}
+    monkeypatch.setattr(ov, "stable_equilibria", lambda bs, delta: [loop])
+    result = types.SimpleNamespace(at_rest=True, status="at_rest",
+                                   simulation=types.SimpleNamespace(positions=np.zeros((2, 3, 2))))
+    got = ov.reached_equilibrium(None, 5.53, result)
+    assert got["branch_reached"] is None and got["nearest_branch"] is None
+    assert got["reach_note"] == "no admissible stable equilibrium at Delta = 5.53"
