@@ -76,10 +76,31 @@ def fold_curves(
                 prm = P.with_(**{q_param: q}).params
                 return 2.0 * min(prm["center"], prm["L"] - prm["center"]) - U[n]
 
-            curves.append(continue_fold(family, sp, q0, settings, parameter=q_param,
-                                        events={"admissible_boundary": boundary},
-                                        stop_on=["admissible_boundary"]))
+            fc = continue_fold(family, sp, q0, settings, parameter=q_param,
+                               events={"admissible_boundary": boundary},
+                               stop_on=["admissible_boundary"])
+            # two folds of the scene can lie on one curve (on either side of a cusp): the
+            # curve continued from the second has the same two ends, and is not a new one
+            if not any(_same_ends(P, q_param, fc, other) for other in curves):
+                curves.append(fc)
     return bs, curves
+
+
+def _same_ends(problem, q_param: str, a, b, rtol: float = 1e-8) -> bool:
+    """Whether two fold curves have the same two ends in the admissible region (in either
+    order), in (q, Delta): the same curve, continued from two of its folds."""
+    def ends(fc):
+        q, d, _ = admissible_curve(problem, fc, q_param)
+        return [(q[0], d[0]), (q[-1], d[-1])] if len(q) else []
+
+    def close(u, v):
+        return all(abs(x - y) <= rtol * (1.0 + abs(y)) for x, y in zip(u, v, strict=True))
+
+    ea, eb = ends(a), ends(b)
+    if not ea or not eb:
+        return False
+    (a0, a1), (b0, b1) = ea, eb
+    return (close(a0, b0) and close(a1, b1)) or (close(a0, b1) and close(a1, b0))
 
 
 def _admissible(problem, q_param: str, q: float, delta: float, rtol: float = 1e-12) -> bool:

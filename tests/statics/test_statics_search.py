@@ -160,3 +160,36 @@ def test_fold_curves_from_the_command_line_pin_the_cusp(tmp_path, capsys, monkey
                  str(ref)]) == 1
     assert main(["folds", "supp-fig5", "--curve", "drop.area", "2.0", "3.0"]) == 2
     assert "contains the scene's drop.area = 1.5" in capsys.readouterr().err
+
+
+def test_a_fold_curve_through_two_folds_of_the_scene_is_listed_once():
+    """At A = 1.70, L = 5.919 the folds Delta = 4.799 and 5.628 lie on one fold curve in A
+    (joined by the cusp at A = 1.7123): continued from each, it was listed twice. It is
+    listed once, and every fold of the scene still lies on a listed curve."""
+    import numpy as np
+
+    from elastocap.statics.bistability import admissible_curve, fold_curves
+
+    sc = load_scene("supp-fig5", {"drop.area": 1.70, "rod.length": 5.919,
+                                  "drop.wetted_length": 3.282})
+    bs, curves = fold_curves(sc, "drop.area", (1.651, 1.74), ds_max=0.02)
+    assert len(bs.folds) == 4 and len(curves) == 3
+    ends = []
+    for fc in curves:
+        q, d, _ = admissible_curve(bs.problem, fc, "drop.area")
+        ends.append(tuple(sorted([(round(q[0], 8), round(d[0], 6)),
+                                  (round(q[-1], 8), round(d[-1], 6))])))
+    assert len(set(ends)) == 3
+    # on a curve where it crosses A = 1.70, to the resolution of linear interpolation
+    # between curve points 0.02 apart (measured 5.5e-3 for 5.628, next to the cusp where the
+    # curve turns; the other folds are curve points, 0)
+    for f in bs.folds:
+        on = []
+        for fc in curves:
+            q, d, _ = admissible_curve(bs.problem, fc, "drop.area")
+            q, d = np.asarray(q), np.asarray(d)
+            for i in np.nonzero(np.diff(np.sign(q - 1.70)))[0]:
+                w = (1.70 - q[i]) / (q[i + 1] - q[i])
+                on.append(abs(d[i] + w * (d[i + 1] - d[i]) - f["value"]))
+            on += list(np.abs(d[q == 1.70] - f["value"]))
+        assert min(on) < 1e-2, (f["value"], min(on))
