@@ -126,8 +126,9 @@ def _candidates() -> list[str]:
     return cand
 
 
-def cache_dir() -> str:
-    """The private directory of generated modules (created with mode 0700 if absent).
+def cache_dir(create: bool = True) -> str:
+    """The private directory of generated modules (created with mode 0700 if absent; with
+    ``create=False`` an absent one is returned as it is, where it would be made).
 
     Raises
     ------
@@ -138,6 +139,8 @@ def cache_dir() -> str:
     refused = []
     for d in _candidates():
         d = os.path.abspath(d)
+        if not create and not os.path.lexists(d):
+            return d
         try:
             os.makedirs(d, mode=0o700, exist_ok=True)
         except OSError as err:
@@ -435,8 +438,9 @@ def evict(keep=(), max_bytes: int = MAX_BYTES, max_age_days: float = MAX_AGE_DAY
 
 
 def clear() -> int:
-    """Remove every cached module and numba's files for them; returns how many."""
-    d = cache_dir()
+    """Remove every cached module and numba's files for them; returns how many (creates
+    nothing)."""
+    d = cache_dir(create=False)
     entries = _entries(d)
     n = len([m for m in entries if m])
     for paths in entries.values():
@@ -447,8 +451,9 @@ def clear() -> int:
 
 
 def info() -> dict:
-    """Location, number of cached modules, their size and the limits (plain data)."""
-    d = cache_dir()
+    """Location, number of cached modules, their size and the limits (plain data); creates
+    nothing."""
+    d = cache_dir(create=False)
     entries = _entries(d)
     entries.pop("", None)
     numba_dir = os.environ.get("NUMBA_CACHE_DIR")

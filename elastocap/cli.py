@@ -628,7 +628,7 @@ def cmd_cache(args) -> int:
     try:
         if args.action == "clear":
             n = cache.clear()
-            rep = {"directory": cache.cache_dir(), "removed_modules": n}
+            rep = {"directory": cache.cache_dir(create=False), "removed_modules": n}
         else:
             rep = cache.info()
     except cache.CacheError as err:

@@ -158,6 +158,16 @@ def test_cli_cache_info_and_clear(tmp_cache, capsys):
     assert not [p for p in tmp_cache.iterdir() if p.suffix == ".py"]
 
 
+def test_cache_info_and_clear_create_nothing(tmp_path, monkeypatch, capsys):
+    from elastocap.cli import main
+
+    where = tmp_path / "not-yet"
+    monkeypatch.setenv(cache.ENV_VAR, str(where))
+    assert main(["cache", "info"]) == 0 and main(["cache", "clear"]) == 0
+    assert f"generated steppers: {where}" in capsys.readouterr().out
+    assert not where.exists()
+
+
 def test_cli_cache_refuses_a_shared_directory(tmp_path, monkeypatch, capsys):
     from elastocap.cli import main
 
