@@ -184,7 +184,7 @@ class BranchSet:
 
         folder = out_dir if isinstance(out_dir, OutputFolder) else OutputFolder(
             out_dir, "branches", key="out_dir")
-        files = []
+        files, sidecars = [], []
         with folder.staged() as stage:
             for k, br in enumerate(self.branches):
                 meta = {**br.metadata, "label": self.labels[k], "scene": self.scene.data,
@@ -193,6 +193,8 @@ class BranchSet:
                         metadata=finite_or_none(meta)).save(
                     stage / f"branch_{k}.npz")
                 files.append(f"branch_{k}.npz")
+                if (stage / f"branch_{k}.json").exists():  # the branch's JSON sidecar
+                    sidecars.append(f"branch_{k}.json")
             summary = self.summary()
             summary["format"] = self.FORMAT
             summary["metadata"] = {**summary["metadata"], "scene": jsonable(self.scene.data),
@@ -201,7 +203,7 @@ class BranchSet:
                 line["file"] = name
             (stage / "branches.json").write_text(
                 json.dumps(summary, indent=2, allow_nan=False), encoding="utf-8")
-        return [folder.final(stage / f) for f in files] + [folder.final(stage / "branches.json")]
+        return [folder.final(stage / f) for f in files + sidecars + ["branches.json"]]
 
     @classmethod
     def load(cls, folder) -> BranchSet:

@@ -116,6 +116,13 @@ def test_outputs_are_where_the_command_says(ran):
             by.setdefault(" ".join(a[:2]), json.loads(o))  # the first run of each
     for f in by["branches supp-fig5"]["files"] + by["impact supp-fig5"]["files"]:
         assert (work / f).is_file() and (work / f).stat().st_size > 0, f
+    # the files listed include every branch file the command wrote (its manifest)
+    listed = {Path(f).name for f in by["branches supp-fig5"]["files"]}
+    folder = Path(by["branches supp-fig5"]["files"][0]).parent
+    folder = folder if folder.is_absolute() else work / folder
+    written = json.loads((folder / ".elastocap-outputs.json").read_text())["runs"]["branches"]
+    assert set(written) <= listed and any(n.endswith(".json") and n.startswith("branch_")
+                                          for n in listed)
     # impact names carry the values that distinguish runs: two Deltas, two sets of files
     names = sorted(p.name for p in (work / "i").iterdir() if not p.name.startswith("."))
     assert names == sorted(
