@@ -31,6 +31,7 @@ __all__ = [
     "frame_verdicts",
     "impact_verdict",
     "companion_outcome",
+    "companion_reading",
     "final_contact_lines",
     "lab_frame_outcome",
     "point_and_tangent",
@@ -227,6 +228,14 @@ class ImpactVerdict:
     at_rest: bool
     decision_time: float | None
     reason: str | None = None
+
+
+def companion_reading(outcome: str, companion: str) -> str:
+    """The companion criterion's outcome of a run whose paper's-criterion outcome is
+    ``outcome``: a run left undecided (not at rest, or its verdict settled after the rod
+    crossed itself: properties of the run, not of the criterion) is undecided under the
+    companion criterion too; else ``companion``."""
+    return UNDECIDED if outcome == UNDECIDED else companion
 
 
 def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,

@@ -102,14 +102,13 @@ def _threshold_at(out: Path, x: float) -> dict | None:
 
 
 def _level_row(res, scene, level, t_max) -> dict:
-    from elastocap.criteria import companion_outcome
+    from elastocap.criteria import companion_outcome, companion_reading
 
     comp = companion_outcome(res.simulation.positions[-1], scene)
-    # as in a sweep: a run left undecided (not at rest, or decided after the rod crossed
-    # itself) is undecided under the companion criterion too; what it would read is kept
+    # as in a sweep (criteria.companion_reading); what it would read is kept
     return {"level": level.level, "n_edges": level.n_edges, "dt": level.dt, "t_max": t_max,
             "outcome": res.outcome,
-            "companion_outcome": res.outcome if res.outcome == UNDECIDED else comp.outcome,
+            "companion_outcome": companion_reading(res.outcome, comp.outcome),
             "companion_would_read": comp.outcome,
             "reason": res.undecided_reason, "final_measure": res.final_measure,
             "status": res.status, "at_rest": res.at_rest, "t_end": res.t_end,

@@ -678,12 +678,11 @@ class Sweep:
 
     # -------------------------------------------------------------------------- analysis
     def outcome_of(self, row: dict) -> str:
-        """The run's outcome under the sweep's criterion. A run the impact left undecided
-        (not at rest, or its verdict settled after the rod crossed itself: properties of
-        the run, not of the criterion) is undecided under the companion criterion too."""
-        if row["outcome"] == UND:
-            return UND
-        return row[self.criterion]
+        """The run's outcome under the sweep's criterion (the companion one read by
+        :func:`elastocap.criteria.companion_reading`: rows stored before the run function
+        applied it hold its raw reading). The rule inlined: importing elastocap.criteria
+        would load numba, which the orchestrator never needs."""
+        return UND if row["outcome"] == UND else row[self.criterion]
 
     def _classify(self, ln: _Line, level: int):
         rows = ln.at(level)

@@ -154,7 +154,7 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
     # imported here: the sweep orchestrator never needs numba, and a worker imports it only
     # after its initializer has set NUMBA_NUM_THREADS
     from elastocap._version import __version__
-    from elastocap.criteria import companion_outcome
+    from elastocap.criteria import companion_outcome, companion_reading
     from elastocap.impact import run_impact
     from elastocap.scene import build_scene
 
@@ -175,9 +175,8 @@ def run_impact_task(scene_name: str, scene_json: str) -> dict:
         "outcome": res.outcome,
         # an undecided run says why (None for a decided one)
         "reason": res.undecided_reason,
-        # a run left undecided (not at rest, or decided after the rod crossed itself) is
-        # undecided under the companion criterion too; its measure is kept
-        "companion_outcome": res.outcome if res.outcome == "undecided" else comp.outcome,
+        # undecided where the run is (its measure is kept)
+        "companion_outcome": companion_reading(res.outcome, comp.outcome),
         "n_edges": settings.get("n_edges"),
         "dt": settings.get("dt"),
         "final_measure": res.final_measure,
