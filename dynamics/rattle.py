@@ -244,6 +244,36 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
         diag[5] = err
         diag[8] = 0.0
         return 2
+    if HAS_GROUND and freed > 0:
+        # project the drift again with the released nodes free: from the held solution
+        # (where they sit on the ground and every edge has its length) the projection
+        # would not move them, and they would stay on the ground with the velocity of
+        # their kick, lifted by nothing (a node stuck at the lift-off point)
+        z0 = _ground_height(t1$pargs)
+        n_nodes = nc // 2
+        free = np.zeros(n_nodes, np.bool_)
+        for i in range(n_nodes):
+            jz = 2 * i + 1
+            free[i] = xnf[jz] == z0 and winvf[jz] != 0.0 and winvf[jz - 1] != 0.0
+        for j in range(nc):
+            xnf[j] = xf[j] + dt * vhf[j]
+            winvf[j] = winv0f[j]
+        _hold(xn, vh, t1, edge_len, winv, 0$pargs)
+        for i in range(n_nodes):
+            if free[i]:
+                jz = 2 * i + 1
+                xnf[jz] = xf[jz] + dt * vhf[jz]
+                winvf[jz] = winv0f[jz]
+        lam[:] = 0.0
+        diag[1] += 1
+        err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam,
+                                          np.bool_(False), 0.0)
+        if it2 < 0:
+            diag[4] = edge
+            diag[5] = err
+            return 2
+        it += it2
+        freed = 0
     if HAS_CONSTRAINTS or HAS_GROUND:
         # the projection may push a free node through a unilateral constraint (ground):
         # re-apply the constraints to the projected positions and project again (a no-op

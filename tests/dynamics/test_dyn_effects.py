@@ -238,8 +238,8 @@ def test_violent_landing_retries_rejected_steps_with_substeps():
     assert r.positions[:, :, 1].min() >= 0.0
     assert r.stats["constraint_error"] < 1e-12
     # bit for bit the recorded trajectory (this machine and numba version; recorded with
-    # the ground releasing the nodes it would pull, 1795 rejected steps; before that
-    # release, and with a separate retry call site, 1822).  Elsewhere round-off differs
+    # the ground releasing the nodes it would pull and projecting the drift again with
+    # them free, 1804 rejected steps).  Elsewhere round-off differs
     # and, after so many rejected steps, no tolerance is known to hold: the physical checks
     # above are what a different build is held to.
     ref = np.load(Path(__file__).parent / "data" / "reference_rejected_steps.npz")
