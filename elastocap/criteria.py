@@ -35,6 +35,7 @@ __all__ = [
     "final_contact_lines",
     "lab_frame_outcome",
     "point_and_tangent",
+    "swing_range",
 ]
 
 ENCAPSULATED = "encapsulated"
@@ -188,12 +189,12 @@ FREE_ROD = "free rod: measure (theta(L) - theta(0))/pi > 1"
 
 def frame_verdicts(scene, positions, s_nodes, measures) -> tuple[str, np.ndarray, np.ndarray]:
     """The impact criterion read on every frame: (criterion, encapsulated (k,) bool, the
-    signed quantity (k,) it thresholds).
+    signed margin (k,) to its threshold).
 
-    Scenes with gravity or a ground: the paper's lab-frame test on x(L) - x(S_c) (negative
-    when encapsulated; ``s_nodes`` the nodes' rest arclengths).  The free rod without
-    gravity: the encapsulation measure M = (theta(L) - theta(0))/pi (``measures``, one per
-    frame) against 1.
+    Scenes with gravity or a ground: the paper's lab-frame test, margin x(L) - x(S_c)
+    (negative when encapsulated; ``s_nodes`` the nodes' rest arclengths).  The free rod
+    without gravity: the encapsulation measure M = (theta(L) - theta(0))/pi (``measures``,
+    one per frame) against 1, margin M - 1 (positive when encapsulated).
     """
     pos = np.asarray(positions, dtype=np.float64)
     if scene.effects.gravity > 0 or scene.effects.ground:
@@ -201,7 +202,96 @@ def frame_verdicts(scene, positions, s_nodes, measures) -> tuple[str, np.ndarray
         q = pos[:, -1, 0] - xc
         return LAB_FRAME, q < 0.0, q
     m = np.asarray(measures, dtype=np.float64)
-    return FREE_ROD, m > 1.0, m
+    return FREE_ROD, m > 1.0, m - 1.0
+
+
+@dataclass(frozen=True)
+class Swing:
+    """Where a swinging margin is headed (:func:`swing_range`).
+
+    Attributes
+    ----------
+    lo, hi : float
+        The range the margin still covers: its last value, the extrapolated rest value and
+        the extrapolated next extreme (or the last swing's extremes).
+    limit : float or None
+        The extrapolated rest value (None without three extremes of a decaying swing).
+    half_period : float
+        Time between the last two extremes.
+    """
+
+    lo: float
+    hi: float
+    limit: float | None
+    half_period: float
+
+
+#: A margin that has moved back from the extreme of its last leg by more than this
+#: fraction of itself has turned (:func:`swing_range`); wiggles at rest are smaller.
+REVERSAL = 1e-3
+
+
+def _extremes(y: np.ndarray, h: float) -> list[int]:
+    """Indices of the turning points of ``y`` that it left by more than ``h`` (a zigzag
+    with hysteresis ``h``; wiggles smaller than h are not turns), then the running extreme
+    of its last leg."""
+    turns: list[int] = []
+    k_ext, direction = 0, 0
+    for k in range(1, y.size):
+        if direction == 0:
+            # the first leg: its direction is set once y has left y[0] by more than h
+            if abs(y[k] - y[0]) > h:
+                direction, k_ext = (1 if y[k] > y[0] else -1), k
+        elif y[k] * direction >= y[k_ext] * direction:
+            k_ext = k
+        elif abs(y[k] - y[k_ext]) > h:
+            turns.append(k_ext)
+            direction, k_ext = -direction, k
+    return turns + [k_ext]
+
+
+def swing_range(times, margins) -> Swing | None:
+    """The range a margin that is still swinging will cover, or None when it is not
+    swinging.
+
+    A run at rest can be read at a turning point of a slow, weakly damped oscillation: the
+    kinetic energy passes through zero there, so a kinetic rest test can fire while the
+    shape is still far from its equilibrium.  The margin's last turns tell: with
+    ``h = |margin[-1]| / 2``, its turning points left by more than h are found (a swing
+    smaller than h cannot carry the margin across 0); the extreme of the last leg is a turn
+    too when the margin has moved back from it by more than ``REVERSAL`` of itself (the
+    rest test fired just after a turn).  The swing is live when there are two turns and the
+    time since the last is below twice the time between the last two (else the margin has
+    crept without turning for two half-periods: no swing).  Three turns e0, e1, e2 of a
+    decaying oscillation about m give the ratio r = (e2 - e1)/(e1 - e0) in (-1, 0), the
+    rest value m = e2 + r (e2 - e1)/(1 - r) (Aitken's extrapolation, exact for a geometric
+    decay) and the extreme after e2, m + r (e2 - m); the range is the hull of the last
+    margin with those.  With two turns only, or a swing that does not decay, it is the hull
+    of the last margin and the last two turns.
+    """
+    t = np.asarray(times, dtype=np.float64)
+    y = np.asarray(margins, dtype=np.float64)
+    if y.size < 3 or not np.all(np.isfinite(y)):
+        return None
+    last = float(y[-1])
+    ks = _extremes(y, 0.5 * abs(last))
+    turns, ext = ks[:-1], ks[-1]
+    if turns and abs(last - float(y[ext])) > REVERSAL * abs(last):
+        # the margin has turned back from the extreme of its last leg: a turn
+        turns = ks
+    if len(turns) < 2 or t[-1] - t[turns[-1]] >= 2.0 * (t[turns[-1]] - t[turns[-2]]):
+        return None
+    half = float(t[turns[-1]] - t[turns[-2]])
+    e1, e2 = float(y[turns[-2]]), float(y[turns[-1]])
+    if len(turns) >= 3:
+        e0 = float(y[turns[-3]])
+        r = (e2 - e1) / (e1 - e0)
+        if -1.0 < r < 0.0:
+            limit = e2 + r * (e2 - e1) / (1.0 - r)
+            cover = (last, limit, limit + r * (e2 - limit))
+            return Swing(min(cover), max(cover), limit, half)
+    cover = (last, e1, e2)
+    return Swing(min(cover), max(cover), None, half)
 
 
 @dataclass(frozen=True)
@@ -239,18 +329,20 @@ def companion_reading(outcome: str, companion: str) -> str:
 
 
 def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,
-                   rise_ok, rise_note, rod_crossing_time,
-                   rest_advice="raise numerics.t_max, or add damping") -> ImpactVerdict:
+                   rise_ok, rise_note, rod_crossing_time, rest_advice, margins=None,
+                   ) -> ImpactVerdict:
     """The outcome of an impact, decided in one place.
 
     ``open``/``encapsulated`` only when the run succeeded numerically (else ``failed``),
     came to rest before ``t_max``, its energy audit passed (``rise_ok``; ``rise_note`` says
-    what failed), and the verdict was settled before the rod first crossed itself (the
-    model has no rod-rod contact: a verdict reached after such a crossing rests on motion
-    the model cannot represent).  Otherwise ``undecided`` with the reason (``rest_advice``:
-    what to try when the run did not come to rest).  The verdict
-    at the last frame is the outcome; it is "settled" at the first frame after which it no
-    longer changes (``decision_time``).
+    what failed), the verdict was settled before the rod first crossed itself (the model
+    has no rod-rod contact: a verdict reached after such a crossing rests on motion the
+    model cannot represent), and the criterion's margin (``margins``, one per frame, its
+    sign the verdict) was not still swinging across its threshold when the run was read at
+    rest (:func:`swing_range`).  Otherwise ``undecided`` with the reason (``rest_advice``:
+    what to try when the run did not come to rest).  The verdict at the last frame is the
+    outcome; it is "settled" at the first frame after which it no longer changes
+    (``decision_time``).
     """
     enc = np.asarray(encapsulated, dtype=bool)
     times = np.asarray(times, dtype=np.float64)
@@ -269,6 +361,16 @@ def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,
         reasons.append(
             f"the verdict settled at t = {decision:.4g}, after the rod crossed itself at "
             f"t = {rod_crossing_time:.4g} (the model has no contact of the rod with itself)")
+    swing = swing_range(times, margins) if at_rest and margins is not None else None
+    if swing is not None and swing.lo < 0.0 < swing.hi:
+        where = ("" if swing.limit is None
+                 else f", its damped swing extrapolates to rest at {swing.limit:+.4g}")
+        reasons.append(
+            f"at rest the criterion's margin {float(margins[-1]):+.4g} was still swinging "
+            f"across 0 (half-period {swing.half_period:.3g}{where}; it covers "
+            f"{swing.lo:+.4g} ... {swing.hi:+.4g}): the rest test fired near a turning "
+            "point (lower numerics.rest_kinetic, or raise numerics.rest_time above the "
+            "half-period)")
     outcome = ENCAPSULATED if enc[-1] else OPEN
     if reasons:
         return ImpactVerdict(UNDECIDED, criterion, bool(at_rest), decision,

@@ -985,7 +985,7 @@ def _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames,
     rod_t = float(sim.times[k_rod]) if k_rod >= 0 else None
     if_t = float(sim.times[k_if]) if k_if >= 0 else None
     final = sim.positions[-1]
-    criterion, enc, _q = frame_verdicts(scene, sim.positions, s_nodes, measures)
+    criterion, enc, margins = frame_verdicts(scene, sim.positions, s_nodes, measures)
     rise_ok = rise <= ENERGY_RISE_TOL * scale
     verdict = impact_verdict(
         criterion=criterion,
@@ -998,6 +998,7 @@ def _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames,
         rise_ok=rise_ok,
         rise_note="" if rise_ok else _rise_message(rise, scale, t_rise),
         rod_crossing_time=rod_t,
+        margins=margins,
     )
     message, status = sim.message, sim.status
     if sim.success and not rise_ok:

@@ -102,3 +102,37 @@ def test_an_inadmissible_equilibrium_is_never_reached(monkeypatch):
     got = ov.reached_equilibrium(None, 5.53, result)
     assert got["branch_reached"] is None and got["nearest_branch"] is None
     assert got["reach_note"] == "no admissible stable equilibrium at Delta = 5.53"
+
+
+# supp-fig5 next door: a slow swing (half-period about 3) about an encapsulated rest state
+# whose measure is 1.0010 at this resolution (the spectral statics: 1.00171)
+SLOW_SWING = {"drop.area": 1.859, "rod.length": 4.211, "drop.wetted_length": 3.630,
+              "effects.damping": 0.717}
+
+
+@pytest.mark.parametrize("rest_kinetic", [None, 1e-4])
+def test_a_rest_read_at_the_turn_of_a_slow_swing_is_undecided(rest_kinetic):
+    """The kinetic energy passes through zero at each turn of the swing, and the rest test
+    fired there: at the default threshold at t = 15.2 with M = 0.99922 (its turns 0.9796,
+    1.0072, 0.9990: Aitken's extrapolation gives 1.0009); at 1e-4 at t = 8.5 on the first
+    turn, M = 0.9797. Both read "open" as decided before the swing's range was checked;
+    the rest state is encapsulated (below)."""
+    over = dict(SLOW_SWING)
+    if rest_kinetic is not None:
+        over["numerics.rest_kinetic"] = rest_kinetic
+    r = run_impact(load_scene("supp-fig5", over))
+    assert r.at_rest and r.final_measure < 1.0
+    assert r.outcome == "undecided", r.outcome
+    assert "was still swinging across 0" in r.undecided_reason
+    assert "lower numerics.rest_kinetic" in r.undecided_reason
+
+
+def test_a_strict_rest_test_outlasts_the_swing_and_rests_on_the_statics_state():
+    bs = trace_branches(load_scene("supp-fig5", {**SLOW_SWING, "numerics.accuracy": "draft"}),
+                        error_estimates=False)
+    r = run_impact(load_scene("supp-fig5", {**SLOW_SWING, "numerics.rest_kinetic": 1e-12}))
+    assert r.at_rest and r.outcome == "encapsulated", (r.outcome, r.undecided_reason)
+    reached = reached_equilibrium(bs, SLOW_SWING["drop.wetted_length"], r)
+    # measured: M = 1.00099 at t = 34.6 against the branch's 1.0017
+    assert reached["branch_reached"] is not None
+    assert r.final_measure == pytest.approx(reached["branch_measure"], abs=2e-3)
