@@ -7,7 +7,7 @@ import json
 import math
 import os
 import secrets
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +27,31 @@ def _replace_atomically(path: Path, write) -> None:
         raise
 
 SCHEMA_VERSION = 1
+
+
+def same_value(a, b) -> bool:
+    """Equality of plain result data: arrays by shape and elements, NaN equal to NaN (an
+    unestimated precision equals itself), dicts, lists and tuples item by item."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        if a.shape != b.shape:
+            return False
+        try:
+            return bool(np.array_equal(a, b, equal_nan=True))
+        except TypeError:  # not numeric: NaN cannot occur
+            return bool(np.array_equal(a, b))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same_value(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return (type(a) is type(b) and len(a) == len(b)
+                and all(same_value(x, y) for x, y in zip(a, b, strict=True)))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b)
+
+
+def _same_fields(a, b) -> bool:
+    return all(same_value(getattr(a, f.name), getattr(b, f.name)) for f in fields(a))
 
 # Status codes of a branch end. The message always says what happened and what to try.
 MAX_STEPS = 0        # ran max_steps
@@ -58,7 +83,7 @@ def package_version() -> str:
     return __version__
 
 
-@dataclass
+@dataclass(eq=False)
 class SpecialPoint:
     """A special point on a branch.
 
@@ -97,6 +122,15 @@ class SpecialPoint:
     name: str = ""
     data: dict = field(default_factory=dict)
 
+    def __eq__(self, other) -> bool:
+        # field by field, arrays by value (the generated == would ask an array for its
+        # truth value and raise)
+        if type(other) is not type(self):
+            return NotImplemented
+        return _same_fields(self, other)
+
+    __hash__ = None
+
     def __repr__(self) -> str:
         loc = "located" if self.located else "bracketed"
         nm = f" {self.name!r}" if self.name else ""
@@ -104,7 +138,7 @@ class SpecialPoint:
                 f"{loc}, precision={self.precision:.1e})")
 
 
-@dataclass
+@dataclass(eq=False)
 class Branch:
     """A computed branch: per-point columns plus special points.
 
@@ -174,6 +208,14 @@ class Branch:
     @property
     def branch_points(self) -> list:
         return self.points("branch_point")
+
+    def __eq__(self, other) -> bool:
+        # field by field, arrays by value (as SpecialPoint)
+        if type(other) is not type(self):
+            return NotImplemented
+        return _same_fields(self, other)
+
+    __hash__ = None
 
     # ------------------------------------------------------------------ storage
     def to_dict(self) -> dict:

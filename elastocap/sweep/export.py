@@ -90,8 +90,10 @@ def load(store, positions: bool = False):
     # an undecided run is undecided under both criteria (stores written before the run
     # function said so hold the companion criterion's raw reading; its measure is kept)
     df.loc[df["outcome"] == "undecided", "companion_outcome"] = "undecided"
+    # true, false, or missing (a failed run): pandas' nullable boolean, which Parquet
+    # keeps as a boolean column with nulls
     df["decided_after_crossing"] = df["decided_after_crossing"].map(
-        lambda v: None if v is None or v != v else bool(v)).astype("object")
+        lambda v: None if v is None or v != v else bool(v)).astype("boolean")
     return df
 
 

@@ -109,6 +109,11 @@ def test_save_load_round_trip(tmp_path):
     assert f1.p == f2.p and np.array_equal(f1.u, f2.u)
     assert np.array_equal(f1.data["kernel"], f2.data["kernel"])
     assert b2.status == br.status and b2.message == br.message
+    # the whole branch, every field, arrays by value: == compares results as data
+    assert b2 == br and b2.folds[0] == br.folds[0]
+    b2.folds[0].u[3] += 1e-12
+    assert b2 != br and b2.folds[0] != br.folds[0]
+    assert br.folds[0] != br.folds[0].p  # another type: not equal, no error
     # Incomplete files are refused by naming what is missing.
     np.savez(tmp_path / "bad.npz", p=br.p)
     with pytest.raises(ValueError, match=r"missing arrays \['ds', 'metadata_json'"):

@@ -57,6 +57,10 @@ def test_export_csv_and_parquet_round_trip(store, tmp_path):
     pq = export_runs(store, tmp_path / "runs.parquet")
     back = pd.read_parquet(pq)
     assert list(back["scene_digest"]) == list(df["scene_digest"])
+    # the flag stays a boolean column with its missing values
+    assert df["decided_after_crossing"].dtype == "boolean"
+    assert back["decided_after_crossing"].dtype == "boolean"
+    assert back["decided_after_crossing"].equals(df["decided_after_crossing"])
     assert not list(tmp_path.glob(".*tmp"))  # the temporary files are gone
 
 
