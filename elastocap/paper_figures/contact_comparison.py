@@ -15,7 +15,7 @@ policies (``drop.interface_contact``):
   outcome, final measure M, rest, the first self-crossing (the crossing detector), the
   closest approach of a node to a segment at rest and over the run, contact-line jumps.
 * **Figs 4 and 5**: the runs of :mod:`elastocap.paper_figures.fig4_fig5` (fig3-strip,
-  damping 0.1, t_max = 100) at the Fig 3d resolution and at 200 edges.
+  damping 0.1, Fig 3d's t_max) at the Fig 3d resolution and at 200 edges.
 
 Every run is kept: the threshold runs in the sweep stores
 ``contact-comparison-CONFIG-nN.sqlite`` (one store holds one scene), the others in
@@ -258,7 +258,7 @@ def strip_scene(name: str, config: str, n_edges: int | None, fast: bool,
                 t_max: float | None = None):
     """The Fig 4/5 run ``name`` (:data:`elastocap.paper_figures.fig4_fig5.RUNS`) under a
     contact configuration, at the Fig 3d resolution or ``n_edges`` (automatic dt), to the
-    figure's t_max (100) or ``t_max``."""
+    figure's t_max (``FIG45_T_MAX``) or ``t_max``."""
     from elastocap.paper_figures.fig4_fig5 import RUNS, run_scene
 
     scene = run_scene(RUNS[name], fast)
@@ -279,7 +279,7 @@ def strip_scene(name: str, config: str, n_edges: int | None, fast: bool,
 
 def strip_runs(cache: RunCache, names, edges, fast: bool):
     """The Fig 4/5 runs under every configuration at each resolution (None: Fig 3d's), and
-    again to ``FIG45_T_MAX_LONG`` where a run had not come to rest by t_max = 100.
+    again to ``FIG45_T_MAX_LONG`` where a run had not come to rest by Fig 3d's t_max.
 
     Returns ``{(name, config, n, t_max): record}`` and the rows for the JSON (the record
     without the final shape, with the companion criterion's outcome on the final shape and,
@@ -485,7 +485,7 @@ def main(out_dir, fast: bool = False) -> list[Path]:
     plot_supp(supp, deltas, configs, out_edges[-1], png)
     files.append(png)
     png2 = out / "contact-fig4-fig5.png"
-    # each run's final shape: to t_max = 100, or to FIG45_T_MAX_LONG where it was repeated
+    # each run's final shape: to Fig 3d's t_max, or to FIG45_T_MAX_LONG where it was repeated
     last = {(nm, c): strip.get((nm, c, strip_edges[-1], FIG45_T_MAX_LONG),
                                strip[(nm, c, strip_edges[-1], FIG45_T_MAX)])
             for nm in strip_names for c in STRIP_CONFIGS}
