@@ -229,6 +229,11 @@ class Swing:
 #: A margin that has moved back from the extreme of its last leg by more than this
 #: fraction of itself has turned (:func:`swing_range`); wiggles at rest are smaller.
 REVERSAL = 1e-3
+#: A swing is live while the time since its last turn is below this many half-periods (a
+#: swing turns again within one; measured on supp-fig5 next door: readings at a turn come
+#: 0.2 half-periods after the last, and a creep that had turned at the impact's overshoot
+#: came 1.8 after it, open at rest as a strict rest test confirms)
+LIVE = 1.5
 
 
 def _extremes(y: np.ndarray, h: float) -> list[int]:
@@ -261,8 +266,9 @@ def swing_range(times, margins) -> Swing | None:
     smaller than h cannot carry the margin across 0); the extreme of the last leg is a turn
     too when the margin has moved back from it by more than ``REVERSAL`` of itself (the
     rest test fired just after a turn).  The swing is live when there are two turns and the
-    time since the last is below twice the time between the last two (else the margin has
-    crept without turning for two half-periods: no swing).  Three turns e0, e1, e2 of a
+    time since the last is below ``LIVE`` times the time between the last two (else the
+    margin has gone a half-period and a half without the turn a swing would make: no
+    swing).  Three turns e0, e1, e2 of a
     decaying oscillation about m give the ratio r = (e2 - e1)/(e1 - e0) in (-1, 0), the
     rest value m = e2 + r (e2 - e1)/(1 - r) (Aitken's extrapolation, exact for a geometric
     decay) and the extreme after e2, m + r (e2 - m); the range is the hull of the last
@@ -279,7 +285,7 @@ def swing_range(times, margins) -> Swing | None:
     if turns and abs(last - float(y[ext])) > REVERSAL * abs(last):
         # the margin has turned back from the extreme of its last leg: a turn
         turns = ks
-    if len(turns) < 2 or t[-1] - t[turns[-1]] >= 2.0 * (t[turns[-1]] - t[turns[-2]]):
+    if len(turns) < 2 or t[-1] - t[turns[-1]] >= LIVE * (t[turns[-1]] - t[turns[-2]]):
         return None
     half = float(t[turns[-1]] - t[turns[-2]])
     e1, e2 = float(y[turns[-2]]), float(y[turns[-1]])
