@@ -73,7 +73,8 @@ BLAS threads
 Discretization error
     Folds and window ends are computed again at ``REFINE`` times the edges; the estimate of
     each is its distance to the nearest special point of the same kind and stability change
-    at the finer resolution.
+    at the finer resolution, on the branch traced there from the same seed or start (any
+    branch where none was traced from it); none where there is no such point.
 """
 
 from __future__ import annotations
@@ -2125,19 +2126,24 @@ def _past_loss(strip: DiscreteStrip, branches, labels, folds, kind_changes, end:
             "open_up_to": min(q["open_up_to"] for q in sides)}
 
 
-def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
+def _follow(coarse: dict, strip: DiscreteStrip) -> tuple[dict, dict]:
     """The seeds and starts that make the branches of the analysis ``coarse`` at the
     resolution of ``strip``: the same seeds (Delta, kind) where a seed made a branch; the
     other branches' first states carried to ``strip`` by :func:`~elastocap.strip.solve.
-    refine` (identity kept)."""
+    refine` (identity kept). Returns (the search's keywords ``only`` and ``starts``, the
+    coarse branch's label of each: ``seeds`` by (Delta, kind), ``starts`` in order)."""
     only, starts = set(), []
+    # the coarse branch's label of each seed and start (:func:`_followed`)
+    seeds, start_labels = {}, []
     cprob = coarse["problem"]
     fine = ContactProblem(strip)
     # the search's branches (those the spreading traced after it follow from its starts)
     origins = coarse["search"].origins
-    for o, br in zip(origins, coarse["branches"][:len(origins)], strict=True):
+    for o, br, lab in zip(origins, coarse["branches"][:len(origins)],
+                          coarse["labels"][:len(origins)], strict=True):
         if o["how"] == "seed":
             only.add((o["p"], o["seed"]))
+            seeds[(round(float(o["p"]), 10), int(o["seed"]))] = lab
             continue
         i = int(br.metadata["start_index"])
         d = float(br.p[i])
@@ -2148,7 +2154,26 @@ def _follow(coarse: dict, strip: DiscreteStrip) -> dict:
             eq = refine_equilibrium(cs, eq, strip.with_(delta=d))
         if eq.success:
             starts.append((fine.join(eq.u, np.where(eq.active, eq.reactions, 0.0)), d))
-    return {"only": only, "starts": starts}
+            start_labels.append(lab)
+    return {"only": only, "starts": starts}, {"seeds": seeds, "starts": start_labels}
+
+
+def _followed(origins, labels, sources) -> dict:
+    """{label of a branch traced by following: label of the coarse branch it follows}: a
+    branch made by a seed follows the coarse branch that seed made; one made by a start,
+    the coarse branch whose state that start carries (``sources``, from :func:`_follow`).
+    Branches found otherwise (next to a special point) follow none."""
+    out = {}
+    for o, lab in zip(origins, labels, strict=True):
+        if o["how"] == "seed":
+            src = sources["seeds"].get((round(float(o["p"]), 10), int(o["seed"])))
+        elif o["how"] == "start":
+            src = sources["starts"][int(o["start"])]
+        else:
+            src = None
+        if src is not None:
+            out[lab] = src
+    return out
 
 
 def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=None,
@@ -2157,11 +2182,11 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
     ``spreading``, the spreading past it: :func:`_past_loss`). ``follow`` (another
     resolution's analysis): trace the same branches, seeded as there, instead of every
     seed (:func:`_follow`)."""
-    kw = {}
+    kw, sources = {}, None
     if follow is not None:
         # following, not searching: no neighbour seeds and one round
-        kw = {**_follow(follow, strip),
-              "settings": SEARCH.replace(neighbour_seeds=False, max_rounds=1)}
+        kw, sources = _follow(follow, strip)
+        kw["settings"] = SEARCH.replace(neighbour_seeds=False, max_rounds=1)
     branches, labels, res, seeded = search_contact_branches(strip, lo, hi, progress,
                                                     descend=follow is None, **kw)
     folds = _fold_list(strip, branches, labels)
@@ -2184,9 +2209,26 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
     end.pop("step", None)
     window = _window(branches, folds, kinds)
     return {"branches": branches, "labels": labels, "search": res, "folds": folds,
+            "followed": {} if sources is None else _followed(res.origins, labels, sources),
             "problem": ContactProblem(strip),
             "kind_changes": kinds, "window": window, "events": _event_list(branches, labels),
             "open_branch_end": end}
+
+
+def _fold_errors(folds, refined, followed) -> None:
+    """Set each fold's ``error_estimate``: its distance to the nearest fold of the same
+    kind and stability change at the finer resolution (``refined``), on the branch that
+    follows the fold's own branch there (``followed``: {refined branch's label: label of
+    the branch it follows}, :func:`_followed`) where one does, on any branch otherwise;
+    None where there is none. A fold of another branch is no estimate of this one's: at
+    x = 4.5, n = 198, a smooth fold at 0.3948 without a counterpart at n = 297 was paired
+    with one at 1.3801 on the deposition's branch."""
+    for fo in folds:
+        same = [g for g in refined if g["kind"] == fo["kind"]
+                and g["stability_change"] == fo["stability_change"]]
+        if fo["branch"] in followed.values():
+            same = [g for g in same if followed.get(g["branch"]) == fo["branch"]]
+        fo["error_estimate"] = _nearest(fo["value"], [g["value"] for g in same])
 
 
 def _nearest(value, candidates):
@@ -2258,10 +2300,7 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
                 sp["open_up_to_refined"] = fsp["open_up_to"]
                 sp["error_estimate"] = (abs(sp["value"] - fsp["value"]) if sp["value"]
                                         is not None and fsp["value"] is not None else None)
-            for fo in a["folds"]:
-                fo["error_estimate"] = _nearest(fo["value"], [
-                    g["value"] for g in f["folds"] if g["kind"] == fo["kind"]
-                    and g["stability_change"] == fo["stability_change"]])
+            _fold_errors(a["folds"], f["folds"], f["followed"])
             for key in ("open_max", "encapsulated_min"):
                 u, v = window[key]["value"], f["window"][key]["value"]
                 if u is not None and v is not None:

@@ -219,3 +219,32 @@ def test_an_event_returning_a_matrix_is_refused():
     with pytest.raises(ValueError, match=r"shape \(1, 2\).*1-D array"):
         C.continue_branch(LINE, np.zeros(1), 0.0, LS,
                           events={"m": lambda u, p: np.ones((1, 2))})
+
+
+@pytest.mark.parametrize("vector", [False, True])
+def test_an_event_crossing_and_back_inside_a_step_cut_by_a_terminal_event_is_located(vector):
+    # on the line u = p, one step from 0.8 to past 1.1: "dip" is negative on (0.9, 1.0)
+    # only (both of its roots in the step, its value positive at both ends), "corner"
+    # (terminal) has its root at 0.95, inside that interval. The run ends at the corner,
+    # where "dip" is negative: its root at 0.9, between the step's start and the corner,
+    # is located (before, the run stopped at the corner with "dip" unseen).
+    def dip(u, p):
+        d = (p - 0.9) * (p - 1.0)
+        return np.array([d, 1.0]) if vector else d
+
+    def corner(u, p):
+        return 0.95 - p
+
+    st_ = LS.replace(ds0=0.4, ds_max=0.4)
+    br = C.continue_branch(LINE, np.array([0.8]), 0.8, st_,
+                           events={"dip": dip, "corner": corner},
+                           stop_on=("corner",))
+    assert br.p[1] > 1.1 and br.status == C.STOPPED  # one step over both roots
+    evs = {sp.name: sp for sp in br.points("event")}
+    assert set(evs) == {"dip", "corner"}
+    assert evs["corner"].located and abs(evs["corner"].p - 0.95) < 2e-12
+    assert evs["dip"].located and evs["dip"].index == 1 and abs(evs["dip"].p - 0.9) < 2e-12
+    # without the terminal event the step's ends decide: no sign change, no event
+    free = C.continue_branch(LINE, np.array([0.8]), 0.8, st_.replace(p_max=1.2),
+                             events={"dip": dip})
+    assert not free.points("event")

@@ -29,6 +29,8 @@ from elastocap.strip.solve import (
 from elastocap.strip.trace import (
     CHORD_STOP,
     DEFAULTS,
+    _fold_errors,
+    _followed,
     open_branch_end,
     segments_of,
     trace_contact_branches,
@@ -249,6 +251,92 @@ def test_downward_restart_and_the_end_where_the_strip_wraps_the_drop():
                 e = solve_equilibrium(S0, u, active=seg.active, tol=1e-11)
                 close.append(np.max(np.abs(e.u - dep.u)))
     assert close and min(close) < 1e-8
+
+
+def _fold_branch_at_x45(delta):
+    """x = 4.5, n = 198 (the scene's resolution): the folded strip at ``delta``."""
+    S = discrete_strip_for(load_scene("fig3-strip", {"drop.distance_from_end": 4.5}))
+    assert S.n == 198
+    S = S.with_(delta=delta)
+    return S, solve_equilibrium(S, wrapped_state(S).u, active=wrapped_state(S).active,
+                                tol=1e-11)
+
+
+def test_a_constraint_violated_only_inside_a_step_is_seen_where_a_corner_cuts_it():
+    # x = 4.5, n = 198: on the folded strip's branch at 136 + 1 held nodes, node 123's
+    # reaction is negative for 0.38367 < Delta < 0.39046 only, inside one continuation step
+    # (~0.024 in Delta), with the corner S1 = node 133 (Delta = 0.38889) in that interval.
+    # Compared at the step's ends only, the reaction was positive at both: the segment
+    # stopped at the corner with the reaction at -0.011 (force), the next one fired a
+    # "lift-off" where it came back through 0, and the branch went through the loop
+    # backwards and up again (the search then reported the loop's folds on two branches).
+    S, eq = _fold_branch_at_x45(0.45)
+    assert eq.success
+    st = ContinuationSettings(**{**DEFAULTS, "direction": -1, "max_steps": 2000})
+    br = trace_discrete_branch(S, eq, (0.3, 0.45), st, restart=True, max_segments=100)
+    # down through the loop to the range's end (before: back up to 0.45)
+    assert br.status == "parameter_bound" and br.delta[-1] == pytest.approx(0.3, abs=1e-12)
+    # every traced point is a contact equilibrium: held reactions >= 0, free nodes above
+    # the ground (Brent locates the events to ~1e-12; before: a reaction of -0.011)
+    worst_r = min(float(np.min(sg.reactions[:, sg.active])) for sg in br.segments)
+    worst_z = min(float(np.min(np.array([S.with_(delta=d).heights(u) for d, u in
+                                          zip(sg.delta, sg.u, strict=True)])[:, ~sg.active]))
+                  for sg in br.segments)
+    assert worst_r > -1e-9 and worst_z > -1e-9, (worst_r, worst_z)
+    # the loop, each point once, in the order traced (measured, this n; its width is the
+    # grid's: at n = 297 the branch has no fold below Delta = 0.5)
+    turns = [(round(t["delta"], 9), t["node"], t["kind"]) for t in br.turning_points]
+    assert turns == [(0.390460001, 123, "lift_off"), (0.383673044, 123, "touch_down")]
+    assert [round(f["delta"], 9) for f in br.folds] == [0.394794863, 0.357798268]
+
+
+def test_the_loop_at_x45_is_one_branch_and_its_folds_are_reported_once():
+    # the search over 0.3 .. 0.65 (seeds at 0.4 and 0.6): the folded strip's branch runs
+    # down through the loop of the test above to 0.3. Before, the trace from the seed at
+    # 0.6 and a neighbour seed at 0.3 each crossed the loop one way, three branches in
+    # all, the smooth folds reported twice.
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": 4.5})
+    bs = trace_contact_branches(sc, prange=(0.3, 0.65), refine=False)
+    assert len(bs.branches) == 2, bs.labels
+    low = sorted((round(f["value"], 9), f["kind"], f["event"], f["node"])
+                 for f in bs.folds if f["value"] < 0.4)
+    assert low == [(0.357798268, "smooth", None, None),
+                   (0.383673044, "contact", "touch_down", 123),
+                   (0.390460001, "contact", "lift_off", 123),
+                   (0.394794863, "smooth", None, None)]
+
+
+def test_a_folds_error_estimate_is_taken_on_the_branch_that_follows_its_own():
+    # the refined run (n = 297) follows each branch of the search at n = 198 from the same
+    # seed or start; measured at x = 4.5: the loop's smooth fold at 0.394794863 has no
+    # counterpart on the folded strip's branch at n = 297 (no fold below Delta = 0.5), and
+    # the nearest smooth fold [0, 1] there, 1.380057 on the deposition's branch, was
+    # reported as its error estimate (0.985). The deposition's own fold at 1.375340151 is
+    # 0.004717 from that one.
+    origins = [{"how": "start", "p": 0.3, "start": 0},
+               {"how": "seed", "p": 0.4, "seed": 0},
+               {"how": "special_point", "p": 0.5, "near": 0.5, "kind": "fold", "branch": 0}]
+    labels = ["start at Delta = 0.3", "deposition at Delta = 0.4", "next to a fold"]
+    sources = {"seeds": {(0.4, 0): "deposition at Delta = 0.4"},
+               "starts": ["fold at Delta = 0.6"]}
+    followed = _followed(origins, labels, sources)
+    assert followed == {"start at Delta = 0.3": "fold at Delta = 0.6",
+                        "deposition at Delta = 0.4": "deposition at Delta = 0.4"}
+
+    def fold(value, branch, change=(0, 1)):
+        return {"value": value, "kind": "smooth", "stability_change": list(change),
+                "branch": branch}
+
+    coarse = [fold(0.394794863, "fold at Delta = 0.6"),
+              fold(1.375340151, "deposition at Delta = 0.4"),
+              fold(0.7, "from a state at Delta = 0.4, at Delta = 0.3")]
+    fine = [fold(1.380057, "deposition at Delta = 0.4"),
+            fold(0.9, "start at Delta = 0.3", change=(1, 0))]
+    _fold_errors(coarse, fine, followed)
+    assert coarse[0]["error_estimate"] is None
+    assert coarse[1]["error_estimate"] == pytest.approx(0.004716849, abs=1e-12)
+    # a branch that no refined branch follows: the nearest on any branch
+    assert coarse[2]["error_estimate"] == pytest.approx(0.680057, abs=1e-12)
 
 
 def test_cli_branches_fig3_strip_traces_with_contact(tmp_path, capsys):
