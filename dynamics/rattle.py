@@ -181,6 +181,19 @@ def _release(xf, xnf, vhf, winvf, winv0f, lam, dt, z0):
 
 
 @numba.njit(cache=True, inline="always")
+def _project_again(xf, xnf, winvf, edge_len, cw, lam, diag):
+    # one more projection of the step's positions (a round of the unilateral
+    # constraints), counted; returns its iterations, negative on failure (recorded)
+    diag[1] += 1
+    err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam, np.bool_(False),
+                                      0.0)
+    if it2 < 0:
+        diag[4] = edge
+        diag[5] = err
+    return it2
+
+
+@numba.njit(cache=True, inline="always")
 def _prepare(x, v, t, edge_len, winv0, A, cw, lam$pargs):
     xn = A[1]
     winv = A[3]
@@ -265,21 +278,16 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
                 xnf[jz] = xf[jz] + dt * vhf[jz]
                 winvf[jz] = winv0f[jz]
         lam[:] = 0.0
-        diag[1] += 1
-        err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam,
-                                          np.bool_(False), 0.0)
+        it2 = _project_again(xf, xnf, winvf, edge_len, cw, lam, diag)
         if it2 < 0:
-            diag[4] = edge
-            diag[5] = err
             return 2
         it += it2
-        freed = 0
     if HAS_CONSTRAINTS or HAS_GROUND:
         # the projection may push a free node through a unilateral constraint (ground):
         # re-apply the constraints to the projected positions and project again (a no-op
         # when no new coordinate got held: protocol: a constraint kernel holds (zeroes
-        # winv of) every coordinate it sets); also when the ground released a node it
-        # would have pulled (first round; a node to release after that waits a step)
+        # winv of) every coordinate it sets; a node the ground would pull after that
+        # waits a step to be released)
         for _round in range(CONTACT_ROUNDS):
             held = 0
             for j in range(nc):
@@ -287,15 +295,10 @@ def _step(x, v, t, dt, edge_len, mass, winv0, B, F, xn, vh, winv, Ff, xnf, vhf, 
             _hold(xn, vh, t1, edge_len, winv, 0$pargs)
             for j in range(nc):
                 held -= winvf[j] == 0.0
-            if held == 0 and freed == 0:
+            if held == 0:
                 break
-            freed = 0
-            diag[1] += 1
-            err, it2, edge, err1 = shake_flat(xf, xnf, winvf, edge_len, cw, lam,
-                                                  np.bool_(False), 0.0)
+            it2 = _project_again(xf, xnf, winvf, edge_len, cw, lam, diag)
             if it2 < 0:
-                diag[4] = edge
-                diag[5] = err
                 return 2
             it += it2
     if HAS_CONTACT:
