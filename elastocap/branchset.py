@@ -184,7 +184,7 @@ class BranchSet:
 
         folder = out_dir if isinstance(out_dir, OutputFolder) else OutputFolder(
             out_dir, "branches", key="out_dir")
-        files, sidecars = [], []
+        files = []
         with folder.staged() as stage:
             for k, br in enumerate(self.branches):
                 meta = {**br.metadata, "label": self.labels[k], "scene": self.scene.data,
@@ -193,8 +193,6 @@ class BranchSet:
                         metadata=finite_or_none(meta)).save(
                     stage / f"branch_{k}.npz")
                 files.append(f"branch_{k}.npz")
-                if (stage / f"branch_{k}.json").exists():  # the branch's JSON sidecar
-                    sidecars.append(f"branch_{k}.json")
             summary = self.summary()
             summary["format"] = self.FORMAT
             summary["metadata"] = {**summary["metadata"], "scene": jsonable(self.scene.data),
@@ -203,6 +201,8 @@ class BranchSet:
                 line["file"] = name
             (stage / "branches.json").write_text(
                 json.dumps(summary, indent=2, allow_nan=False), encoding="utf-8")
+        # Branch.save writes a JSON summary beside each .npz
+        sidecars = [f.removesuffix(".npz") + ".json" for f in files]
         return [folder.final(stage / f) for f in files + sidecars + ["branches.json"]]
 
     @classmethod

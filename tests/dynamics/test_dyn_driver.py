@@ -59,8 +59,9 @@ def test_trajectories_are_those_of_the_previous_steppers(scene, method):
     numba 0.68.1): bit for bit where the method did not change.  RATTLE's strip run is
     recorded with the ground releasing the nodes it would pull and projecting the drift
     again with them free (0.0125 from the run that kept the held projection; at t = 2 the
-    run is 0.029 from the midpoint rule at dt / 16 and RATTLE at dt / 16 is 1.7e-3 from
-    it, that rule's own change from dt / 8 to dt / 16 being 3.2e-3).  On another CPU or
+    run is 0.028 from the midpoint rule at 1/64 of its step and RATTLE at 1/16 of its step
+    is 1.7e-3 from it, the midpoint rule's own change from 1/64 to 1/128 of its step being
+    3.2e-3).  On another CPU or
     numba version round-off may differ: there the comparison is to 1e-9."""
     ref = np.load(REF)
     res = (_free if scene == "free" else _strip)(method)
