@@ -317,6 +317,10 @@ class ImpactVerdict:
         there are no frames).
     reason : str or None
         Why the outcome is undecided (None when decided or failed).
+    swing_half_period : float or None
+        When the only reason is that the rest test fired at a turn of a swing of the
+        criterion's margin (:func:`swing_range`): that swing's half-period (a longer
+        ``numerics.rest_time`` decides such a run); else None.
     """
 
     outcome: str
@@ -324,6 +328,7 @@ class ImpactVerdict:
     at_rest: bool
     decision_time: float | None
     reason: str | None = None
+    swing_half_period: float | None = None
 
 
 def companion_reading(outcome: str, companion: str) -> str:
@@ -379,6 +384,8 @@ def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,
             "half-period)")
     outcome = ENCAPSULATED if enc[-1] else OPEN
     if reasons:
+        only_swing = len(reasons) == 1 and swing is not None and swing.lo < 0.0 < swing.hi
         return ImpactVerdict(UNDECIDED, criterion, bool(at_rest), decision,
-                             f"would read {outcome}, but " + "; ".join(reasons))
+                             f"would read {outcome}, but " + "; ".join(reasons),
+                             swing.half_period if only_swing else None)
     return ImpactVerdict(outcome, criterion, bool(at_rest), decision)

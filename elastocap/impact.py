@@ -69,7 +69,7 @@ from dynamics import (
 )
 from elastocap._version import __version__
 from elastocap.capillary import Capillary
-from elastocap.criteria import frame_verdicts, impact_verdict
+from elastocap.criteria import ImpactVerdict, frame_verdicts, impact_verdict
 from elastocap.crossings import (
     INTERFACE_POINTS,
     first_crossing_frames,
@@ -147,6 +147,13 @@ DT_RETRIES = 2
 FRAME_SPACING = 0.05
 #: Upper bound on the number of frames (memory: frames x nodes x 16 bytes).
 MAX_FRAMES = 20001
+#: A run whose rest test fired at a turn of a slow swing of the criterion's margin
+#: (:func:`elastocap.criteria.swing_range`) is run again once, with ``numerics.rest_time``
+#: raised to this many half-periods of that swing: the kinetic energy must then stay low
+#: through a whole swing, which a turning point cannot fake (supp-fig5 next door, A 1.859,
+#: L 4.211, Delta 3.63, damping 0.717: at rest at t = 25.8, M = 1.00101; a strict rest test,
+#: rest_kinetic 1e-12, rests at t = 34.6 with M = 1.00099).
+SWING_REST_HALF_PERIODS = 2.0
 
 
 @dataclass
@@ -920,6 +927,29 @@ def run_impact(scene: Scene, frames: int | None = None, **options) -> ImpactResu
     for ev in scene.drop.events:
         if ev.time > st["t_max"]:
             raise SceneError("drop.events", ev.time, f"event after numerics.t_max = {st['t_max']}")
+    res, verdict = _impact_once(scene, dict(st), frames, options, t0)
+    if verdict.swing_half_period is None:
+        return res
+    # the rest test fired at a turn of a slow swing: run again with a rest test that needs
+    # the kinetic energy low for SWING_REST_HALF_PERIODS of that swing's half-periods
+    first = res
+    st["rest_time"] = max(st["rest_time"], SWING_REST_HALF_PERIODS * verdict.swing_half_period)
+    res, _ = _impact_once(scene, dict(st), frames, options, t0)
+    res.settings["rest_repeat"] = {
+        "first_t_end": first.t_end, "first_final_measure": first.final_measure,
+        "first_steps": first.steps, "swing_half_period": verdict.swing_half_period,
+        "rest_time": st["rest_time"]}
+    res.run_time_s += first.run_time_s
+    res.message = (
+        f"At rest at t = {first.t_end:.4g} the criterion's margin was swinging across 0 "
+        f"(half-period {verdict.swing_half_period:.3g}): run again with numerics.rest_time = "
+        f"{st['rest_time']:.4g} ({SWING_REST_HALF_PERIODS:g} half-periods). " + res.message)
+    return res
+
+
+def _impact_once(scene: Scene, st: dict, frames, options, t0: float):
+    """One impact at settings ``st`` (its dt retries included): the result and its
+    :class:`elastocap.criteria.ImpactVerdict`."""
     rod = _initial_rod(scene, st["n_edges"])
     attempts = _run_attempts(scene, st, rod, frames, options)
     scale = scene.drop.line_tension * scene.drop.wetted_length
@@ -974,7 +1004,7 @@ def touch_note(touches: list, scale: float, most: int = 3) -> str:
 
 
 def _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames,
-              crossings) -> ImpactResult:
+              crossings) -> tuple[ImpactResult, ImpactVerdict]:
     """Measures, the outcome (:func:`elastocap.criteria.impact_verdict`) and the message
     of the kept attempt: nodes at arclengths ``s_nodes``, capillary parameters per frame
     ``cap_frames``, first crossing frames ``crossings``
@@ -1024,7 +1054,7 @@ def _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames,
     crossed = [t for t in (rod_t, if_t) if t is not None]
     decided_after = (bool(crossed) and verdict.decision_time is not None
                      and verdict.decision_time >= min(crossed))
-    return ImpactResult(
+    result = ImpactResult(
         outcome=verdict.outcome,
         criterion=criterion,
         final_measure=float(measures[-1]),
@@ -1055,3 +1085,4 @@ def _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames,
         simulation=sim,
         measure_history=measures,
     )
+    return result, verdict

@@ -149,3 +149,14 @@ def test_the_verdict_names_a_swing_across_the_threshold():
     assert "extrapolates to rest at +0.3" in v.reason
     # the same frames without margins (a caller that has none) are decided
     assert _v(y < 0.0, times=t).outcome == "encapsulated"
+
+
+def test_the_swing_half_period_is_given_when_the_swing_is_the_only_reason():
+    """run_impact repeats a run with a longer rest test only when the swing alone left it
+    undecided: a repeat cannot settle a verdict taken after a self-crossing."""
+    t, y = _damped(0.3, 1.0, 0.1, 1.0, 3.0 * np.pi + 0.1)
+    alone = _v(y < 0.0, times=t, margins=y)
+    assert alone.swing_half_period == pytest.approx(np.pi, rel=0.05)
+    crossed = _v(y < 0.0, times=t, margins=y, rod_crossing_time=float(t[1]))
+    assert crossed.outcome == "undecided" and crossed.swing_half_period is None
+    assert _v(ENC_FROM_4).swing_half_period is None
