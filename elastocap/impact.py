@@ -942,12 +942,14 @@ def run_impact(scene: Scene, frames: int | None = None, **options) -> ImpactResu
                               SWING_REST_HALF_PERIODS * verdict.swing_half_period)
         repeats.append({"t_end": res.t_end, "final_measure": res.final_measure,
                         "steps": res.steps, "run_time_s": res.run_time_s,
+                        "compile_time_s": res.compile_time_s,
                         "swing_half_period": verdict.swing_half_period,
                         "rest_kinetic": st["rest_kinetic"], "rest_time": st["rest_time"]})
         res, verdict = _impact_once(scene, dict(st), frames, options, t0)
     if repeats:
         res.settings["rest_repeats"] = repeats
         res.run_time_s += sum(r["run_time_s"] for r in repeats)
+        res.compile_time_s += sum(r["compile_time_s"] for r in repeats)
         res.message = "".join(
             f"At rest at t = {r['t_end']:.4g} the criterion's margin was swinging across 0 "
             f"(half-period {r['swing_half_period']:.3g}): run again with a rest test of "
