@@ -4,6 +4,8 @@ statics (the one stable state of the scene) by a damped run that does come to re
 inputs that can never come to rest, or the bounds quoted in refusals, are what they say."""
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from elastocap.impact import impact_settings, rest_damping_ratio, round_down, run_impact
 from elastocap.overlay import REACH_DISTANCE, reached_equilibrium
@@ -171,3 +173,22 @@ def test_a_creep_after_the_impacts_overshoot_is_no_swing():
                                                  "numerics.rest_time": 2.0}))
     assert r.outcome == strict.outcome == "open", r.undecided_reason
     assert r.final_measure == pytest.approx(strict.final_measure, abs=2e-3)
+
+
+@settings(max_examples=12)
+@given(area=st.floats(1.5, 2.0), length=st.floats(4.0, 4.5), frac=st.floats(0.8, 0.9),
+       damping=st.floats(0.3, 1.2))
+def test_the_outcome_next_door_is_the_strict_rest_tests(area, length, frac, damping):
+    """supp-fig5 next door (draft), where slow swings about the threshold occur: a decided
+    outcome of the default rest test, with its repeats, is the outcome of a rest test a
+    million times stricter held twice as long. Only the outcome: the final measure of a rod
+    that creeps can differ (measured on 60 such scenes: median 1.6e-3, at most 0.153, where
+    the default test rests at t = 19 with M = 0.824 and the strict one at t = 112 with
+    M = 0.978, both open)."""
+    over = {"drop.area": area, "rod.length": length, "drop.wetted_length": frac * length,
+            "effects.damping": damping, "numerics.accuracy": "draft", "numerics.t_max": 400}
+    r = run_impact(load_scene("supp-fig5", over))
+    strict = run_impact(load_scene("supp-fig5", {**over, "numerics.rest_kinetic": 1e-12,
+                                                 "numerics.rest_time": 2.0}))
+    assert strict.outcome in ("open", "encapsulated"), strict.undecided_reason
+    assert r.outcome in ("undecided", strict.outcome), (r.outcome, strict.outcome)
