@@ -427,6 +427,8 @@ class _Run:
         self.callback = callback
         self.p, self.u, self.t, self.ds, self.it, self.stab = [], [], [], [], [], []
         self.det, self.obs, self.ev_vals = [], [], []
+        # slopes of the events' values (entries) along the tangent, where event_dips asks
+        self.ev_slopes = []
         self.sps: list[SpecialPoint] = []
         # factorization of the last step's bordered matrix (the row of the tangent at the
         # point before it), near the step's end: reused to locate events on the step
@@ -446,6 +448,37 @@ class _Run:
         self.det.append(det_sign)
         self.obs.append(obs)
         self.ev_vals.append({k: _event_value(g(x[:n], x[n])) for k, g in self.events.items()})
+        st = self.core.s
+        if (st.event_dips and st.locate or st.event_steps) and self.events:
+            self.ev_slopes.append(_event_slopes(self.core, self.events, self.ev_vals[-1],
+                                                x, t))
+
+
+#: Forward-difference step of the events' slopes (:func:`_event_slopes`), relative to
+#: 1 + |x| in the weighted norm: ~sqrt(eps), the usual balance of truncation and rounding.
+_EVENT_FD = 1.5e-8
+
+
+def _event_slopes(core, events, vals, x, t) -> dict:
+    """{name: d(entries)/ds along the unit tangent ``t`` at ``x``} of each event (a 1-entry
+    array for a scalar one), by a forward difference; ``vals`` its values at ``x``
+    (:func:`_event_value`). Entries not finite at either point give non-finite slopes,
+    which :func:`_event_dip` leaves out."""
+    n = core.n
+    h = _EVENT_FD * (1.0 + math.sqrt(core.dot(x, x)))
+    xh = x + h * t
+    out = {}
+    for name, g in events.items():
+        v0, e0 = vals[name]
+        v1, e1 = _event_value(g(xh[:n], xh[n]))
+        a0 = np.array([v0]) if e0 is None else e0
+        a1 = np.array([v1]) if e1 is None else e1
+        if a0.shape != a1.shape:
+            out[name] = None
+            continue
+        with np.errstate(invalid="ignore", over="ignore"):
+            out[name] = (a1 - a0) / h
+    return out
 
 
 def _p_reversed(pa, pb, dpa, dpb) -> bool:
@@ -468,6 +501,52 @@ def _fold_approach_step(ds, ds_used, dpa, dpb, ds_min) -> float:
     return max(min(ds, 2.0 * to_zero), ds_used / 20.0, ds_min)
 
 
+def _event_reach(vals, slopes) -> float:
+    """Arclength from a point where the events have values ``vals`` and slopes along the
+    tangent ``slopes`` (:func:`_event_slopes`) to the nearest zero of their linear
+    extrapolation (inf if none): positive (the least entry above 0), the first entry to
+    reach 0; negative, the last negative entry to rise through 0, where each of them
+    rises."""
+    reach = math.inf
+    for name, (g, e) in vals.items():
+        sl = slopes.get(name)
+        if sl is None or g == 0.0 or not math.isfinite(g):
+            continue
+        e = np.array([g]) if e is None else e
+        with np.errstate(invalid="ignore", divide="ignore"):
+            if g > 0.0:
+                go = np.isfinite(e) & np.isfinite(sl) & (sl < 0.0)
+                if go.any():
+                    reach = min(reach, float(np.min(e[go] / -sl[go])))
+            else:
+                neg = e < 0.0
+                if np.all(np.isfinite(sl[neg]) & (sl[neg] > 0.0)):
+                    reach = min(reach, float(np.max(-e[neg] / sl[neg])))
+    return reach
+
+
+def _event_approach_step(ds, ds_used, reach, ds_min) -> float:
+    """The next step length where an event's predicted zero is ``reach`` away
+    (:func:`_event_reach`): at most twice that (one distance past it), and at least
+    ds_used / 20, as for a fold (:func:`_fold_approach_step`)."""
+    if not reach < 0.5 * ds:
+        return ds
+    return max(2.0 * reach, ds_used / 20.0, ds_min)
+
+
+def _jumped(core, x, t, x_new, t_new, ds, fac) -> bool:
+    """Whether a step of ``ds`` from ``x`` (tangent ``t``) to ``x_new`` (``t_new``) is not
+    one arc of the branch: the point at its middle, corrected on the hyperplane normal to
+    ``t`` from the cubic through the ends and their tangents (chord iterations on the
+    step's factorization ``fac``), fails or lies farther than ds / 2 from that cubic."""
+    guess = 0.5 * (x + x_new) + 0.125 * ds * (t - t_new)
+    r = _point_at(core, x, t, 0.5 * ds, guess=guess, fac=fac)
+    if not r.ok:
+        return True
+    d = r.x - guess
+    return math.sqrt(core.dot(d, d)) > 0.5 * ds
+
+
 def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_first=False):
     s = core.s
     n = core.n
@@ -479,6 +558,9 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
     mp = s.corrector == "moore-penrose"
     hook = getattr(core.ev.problem, "_on_accept", None)
     for step in range(1, s.max_steps + 1):
+        # the arclength to the events' nearest predicted zero (event_steps)
+        reach = _event_reach(run.ev_vals[-1], run.ev_slopes[-1]) \
+            if s.event_steps and run.ev_slopes else math.inf
         # ---- predictor-corrector with step rejection
         last_reason = ""
         while True:
@@ -505,6 +587,11 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
                         # inside the step (an S near a cusp), invisible to the sign test
                         res.ok = False
                         res.reason = "p reversed within the step (two folds inside it)"
+                    elif reach < ds and _jumped(core, x, t, res.x, t_new, ds, fac):
+                        # an event predicted inside the step: a corrector that jumps to
+                        # another part of the branch there sees it at neither end
+                        res.ok = False
+                        res.reason = "the step's middle is off its arc (a jump)"
             if res.ok:
                 break
             last_reason = res.reason
@@ -591,6 +678,11 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
         # a fold (or the two folds of an S next to a cusp, which a longer step could
         # cross at once) is bracketed step by step
         ds = _fold_approach_step(ds, ds_used, t[n], t_new[n], s.ds_min)
+        # ... and likewise an event's zero, predicted from its value and slope at the new
+        # point: a longer step could pass over a stretch where it has the other sign
+        if s.event_steps and run.ev_slopes:
+            ds = _event_approach_step(ds, ds_used, _event_reach(run.ev_vals[-1],
+                                                                run.ev_slopes[-1]), s.ds_min)
         x, t = x_new, t_new
     run.status = B.MAX_STEPS
     run.message = (f"reached max_steps={s.max_steps} at p={x[n]:.10g}. Try increasing "
@@ -625,14 +717,15 @@ def _point_at(core, x_a, t_a, s_arc, guess=None, fac=None):
     return r
 
 
-def _bisect_on_arc(core, run, k, func, fa, fb, chord=False, end=None):
+def _bisect_on_arc(core, run, k, func, fa, fb, chord=False, end=None, start=None):
     """Root of ``func(x)`` between points k-1 and k, by Brent's method in arclength.
 
     The points on the arc are corrected on the hyperplanes normal to the tangent at k-1,
     the rows of the step's own corrector; with ``chord`` its last factorization
     (``run.fac``) serves their chord iterations (:meth:`_Core.chord`). ``end``: a point
     of the step's arc (corrected on one of those hyperplanes, e.g. a located event) that
-    bounds the bracket instead of point k. Not for branch
+    bounds the bracket instead of point k; ``start`` (likewise, where ``func`` is ``fa``)
+    instead of point k-1. Not for branch
     points: there the bordered matrix is singular, the chord iteration would refactorize
     at every point, and the corrected points are as ill-determined as the matrix is
     singular, so each corrector gives other ones (full Newton is kept there)."""
@@ -640,6 +733,7 @@ def _bisect_on_arc(core, run, k, func, fa, fb, chord=False, end=None):
     xb = np.concatenate([run.u[k], [run.p[k]]]) if end is None else np.asarray(end, float)
     ta = run.t[k - 1]
     sb = core.dot(xb - xa, ta)
+    s0 = 0.0 if start is None else core.dot(np.asarray(start, float) - xa, ta)
     cache = {}
     # the factorization the points are corrected with: the step's own, then the last one
     # made while correcting them (nearer the root, where Brent's points close in)
@@ -647,14 +741,16 @@ def _bisect_on_arc(core, run, k, func, fa, fb, chord=False, end=None):
     # corrected points by arclength: each new one starts from the nearest (Brent's points
     # close in on the root, so Newton starts ever closer to the solution it converges to)
     near = {0.0: xa, sb: xb}
+    if start is not None:
+        near[s0] = np.asarray(start, float)
 
     def f(sv):
-        if sv == 0.0:
+        if sv == s0:
             return fa
         if sv == sb:
             return fb
-        s0 = min(near, key=lambda s: abs(s - sv))
-        r = _point_at(core, xa, ta, sv, guess=near[s0] + (sv - s0) * ta, fac=fac[0])
+        sn = min(near, key=lambda s: abs(s - sv))
+        r = _point_at(core, xa, ta, sv, guess=near[sn] + (sv - sn) * ta, fac=fac[0])
         if not r.ok:
             raise _LocateError(r.reason)
         if chord and r.fac is not None:
@@ -666,7 +762,7 @@ def _bisect_on_arc(core, run, k, func, fa, fb, chord=False, end=None):
 
     xtol = core.s.locate_tol * max(1.0, abs(sb))
     try:
-        sroot = sopt.brentq(f, 0.0, sb, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=60)
+        sroot = sopt.brentq(f, s0, sb, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=60)
     except (_LocateError, ValueError, RuntimeError):
         return None, abs(sb)
     if sroot in cache:
@@ -877,6 +973,20 @@ def _detect(core, run, k, skip_first=False):
         if ga * gb < 0 or (gb == 0 and ga != 0):
             found.add(name)
             run.sps.append(_event_point(core, run, k, name, g, ga, va, gb, vb))
+    # An event of one sign at both ends that changes sign and back inside the step: a cubic
+    # through its values and slopes at the ends says where it may, corrected points on the
+    # step's arc confirm it (_event_dip). Measured on the strip (x = 4, n = 297): a free
+    # node's gap negative over 0.013 in Delta, down to -0.23 q h, inside one step of 0.017;
+    # compared at the ends only, the trace walked through it.
+    dips = []
+    if s.locate and s.event_dips:
+        for name, g in run.events.items():
+            if name not in found:
+                dip = _event_dip(core, run, k, name, g)
+                if dip:
+                    found.add(name)
+                    dips.extend(dip)
+        run.sps.extend(dips)
     # A terminal event inside the step ends the run at its root, where the step is cut:
     # an event whose function crosses 0 and back within the step has one sign at both of
     # the step's ends, yet changes sign between point k-1 and that root. Measured on the
@@ -885,11 +995,18 @@ def _detect(core, run, k, skip_first=False):
     # the run stopped at the corner with the constraint violated and the lift-off unseen.
     stops = [sp for sp in run.sps if sp.kind == "event" and sp.index == k and sp.located
              and sp.name in run.stop_on]
-    if not (s.locate and stops and len(found) < len(run.events)):
+    if not stops:
         return
     xa = np.concatenate([run.u[k - 1], [run.p[k - 1]]])
     cut = min((np.concatenate([sp.u, [sp.p]]) for sp in stops),
               key=lambda x: core.dot(x - xa, ta))
+    # the roots of a dip past the terminal event's lie beyond the run's end
+    s_cut = core.dot(cut - xa, ta)
+    for sp in dips:
+        if sp.located and core.dot(np.concatenate([sp.u, [sp.p]]) - xa, ta) > s_cut:
+            run.sps.remove(sp)
+    if not (s.locate and len(found) < len(run.events)):
+        return
     for name, g in run.events.items():
         if name in found:
             continue
@@ -898,24 +1015,134 @@ def _detect(core, run, k, skip_first=False):
             run.sps.append(_event_point(core, run, k, name, g, ga, va, gc, vc, end=cut))
 
 
-def _event_point(core, run, k, name, g, ga, va, gb, vb, end=None):
+def _event_point(core, run, k, name, g, ga, va, gb, vb, end=None, start=None):
     """The special point of the event ``name`` whose function ``g`` changes sign (values
     ``ga``, ``gb``, entries ``va``, ``vb`` of a vector event) between points k-1 and k (or
-    ``end``, a point of the step's arc), located there when the settings ask for it."""
+    ``start`` and ``end``, points of the step's arc), located there when the settings ask
+    for it."""
     n = core.n
     xb = np.concatenate([run.u[k], [run.p[k]]]) if end is None else end
-    sp = SpecialPoint("event", k, float(xb[n]), xb[:n].copy(),
-                      abs(xb[n] - run.p[k - 1]), False, name, {})
+    pa = run.p[k - 1] if start is None else float(start[n])
+    sp = SpecialPoint("event", k, float(xb[n]), xb[:n].copy(), abs(xb[n] - pa), False,
+                      name, {})
     if core.s.locate:
         xr, prec = (None, None) if va is None else \
-            _locate_vector_event(core, run, k, g, va, vb, end=end)
+            _locate_vector_event(core, run, k, g, va, vb, end=end, start=start)
         if xr is None:
             xr, prec = _bisect_on_arc(
                 core, run, k, lambda x, g=g: _event_value(g(x[:n], x[n]))[0],
-                ga, gb, chord=True, end=end)
+                ga, gb, chord=True, end=end, start=start)
         if xr is not None:
             sp.p, sp.u, sp.precision, sp.located = float(xr[n]), xr[:n].copy(), prec, True
     return sp
+
+
+#: Event dips (:func:`_event_dip`): the interpolant's extremum is sought on this grid of the
+#: step (fractions of its arclength), ...
+_DIP_GRID = np.linspace(0.0, 1.0, 257)
+#: ... confirmed by at most this many corrected points, ...
+_DIP_POINTS = 3
+#: ... and not tried where the tangent turns by more than this cosine over the step (the
+#: slope at its end, taken along the end's tangent, is divided by it).
+_DIP_MIN_COS = 0.1
+
+
+def _dip_fit(taus, vals, da, db):
+    """Coefficients (highest power first, one column per entry) of the polynomial of least
+    degree through ``vals`` (rows) at ``taus`` with slopes ``da`` at 0 and ``db`` at 1."""
+    taus = np.asarray(taus, float)
+    m = taus.size + 2
+    powers = np.arange(m - 1, -1, -1)
+    rows = [taus[i] ** powers for i in range(taus.size)]
+    dpow = np.maximum(powers - 1, 0)
+    rows.append(np.where(powers == 1, 1.0, 0.0))  # slope at 0
+    rows.append(powers * 1.0 ** dpow)  # slope at 1
+    rhs = np.vstack([np.asarray(vals, float), da[None, :], db[None, :]])
+    return np.linalg.solve(np.array(rows), rhs)
+
+
+def _event_dip(core, run, k, name, g) -> list:
+    """The special points of the event ``name`` (function ``g``) where it changes sign
+    and back between points k-1 and k, with one sign at both; [] if it does not.
+
+    The arc's points are parametrized as the corrector's: s in [0, sb] along the tangent
+    t_a at k-1 (the hyperplanes normal to it), tau = s / sb. Each entry of the event (its
+    value, for a scalar one) is interpolated by the cubic with its values and slopes at
+    both ends (the slope at k along t_b, divided by t_a . t_b = ds/dsigma there): falling
+    (positive at both ends), an entry may dip below 0 only where
+    min(value_a, value_b) < max(|slope_a - chord|, |slope_b - chord|) / 4 (the cubic's
+    departure from the chord), so most steps stop at that bound. Otherwise the least
+    entry of the interpolants is searched on a grid of the step for its extremum (rising,
+    negative at both ends: the greatest); where it has the other sign, the point of the
+    arc there is corrected (the step's factorization, chord iterations) and the event
+    evaluated on it. A crossing confirmed there is located between k-1 and that point
+    (the first root) and, unless the event is terminal (the run ends at the first),
+    between it and k (the second). A point that does not confirm it joins the
+    interpolation (values there, a polynomial one degree higher), at most _DIP_POINTS.
+    A step whose tangent turns by more than arccos(_DIP_MIN_COS), or an entry not finite
+    at an end (value or slope), is not tested.
+    """
+    n = core.n
+    (ga, va), (gb, vb) = run.ev_vals[k - 1][name], run.ev_vals[k][name]
+    sa, sbl = run.ev_slopes[k - 1].get(name), run.ev_slopes[k].get(name)
+    if not ga * gb > 0.0 or sa is None or sbl is None:
+        return []
+    ta, tb = run.t[k - 1], run.t[k]
+    cos = core.dot(tb, ta)
+    xa = np.concatenate([run.u[k - 1], [run.p[k - 1]]])
+    xb = np.concatenate([run.u[k], [run.p[k]]])
+    sb = core.dot(xb - xa, ta)
+    if not (cos > _DIP_MIN_COS and sb > 0.0):
+        return []
+    ea = np.array([ga]) if va is None else va
+    eb = np.array([gb]) if vb is None else vb
+    with np.errstate(invalid="ignore", over="ignore"):
+        da, db = sa * sb, sbl * (sb / cos)
+        use = np.isfinite(ea) & np.isfinite(eb) & np.isfinite(da) & np.isfinite(db)
+        chord = eb - ea
+        bound = 0.25 * np.maximum(np.abs(da - chord), np.abs(db - chord))
+    fall = ga > 0.0
+    if fall:
+        # only the entries whose cubic can reach 0 matter for the minimum's sign
+        use &= np.minimum(ea, eb) < bound
+        if not use.any():
+            return []
+    elif not use.any() or np.any(use & (np.maximum(ea, eb) + bound < 0.0)):
+        # rising: an entry whose cubic stays negative keeps the minimum negative
+        return []
+    taus, vals = [0.0, 1.0], [ea[use], eb[use]]
+    da, db = da[use], db[use]
+    for _ in range(_DIP_POINTS):
+        coef = _dip_fit(taus, vals, da, db)
+        least = np.min(np.polynomial.polynomial.polyvander(_DIP_GRID, coef.shape[0] - 1)
+                       @ coef[::-1], axis=1)
+        i = int(np.argmin(least) if fall else np.argmax(least))
+        if (least[i] >= 0.0) if fall else (least[i] <= 0.0):
+            return []
+        tau = float(_DIP_GRID[i])
+        if min(abs(tau - t) for t in taus) < 2.0 / (_DIP_GRID.size - 1):
+            return []  # no new point to try
+        r = _point_at(core, xa, ta, tau * sb, guess=xa + tau * (xb - xa), fac=run.fac)
+        if not r.ok:
+            return []
+        gc, vc = _event_value(g(r.x[:n], r.x[n]))
+        if gc * ga < 0.0:
+            pts = [_event_point(core, run, k, name, g, ga, va, gc, vc, end=r.x)]
+            if name not in run.stop_on:
+                pts.append(_event_point(core, run, k, name, g, gc, vc, gb, vb, start=r.x))
+            return pts
+        ec = np.array([gc]) if vc is None else vc
+        if ec.shape != ea.shape:
+            return []
+        ec = ec[use]
+        keep = np.isfinite(ec)
+        if not keep.any():
+            return []
+        taus.append(tau)
+        vals = [v[keep] for v in vals] + [ec[keep]]
+        da, db = da[keep], db[keep]
+        use[np.flatnonzero(use)[~keep]] = False
+    return []
 
 
 def _event_value(val):
@@ -930,9 +1157,10 @@ def _event_value(val):
     return float(v.min()), v
 
 
-def _locate_vector_event(core, run, k, g, va, vb, end=None):
-    """Root of a vector event's smallest entry between points k-1 and k (or ``end``, a
-    point of the step's arc, where ``vb`` is taken: :func:`_bisect_on_arc`), located on the
+def _locate_vector_event(core, run, k, g, va, vb, end=None, start=None):
+    """Root of a vector event's smallest entry between points k-1 and k (or ``start`` and
+    ``end``, points of the step's arc, where ``va`` and ``vb`` are taken:
+    :func:`_bisect_on_arc`), located on the
     one entry whose sign change makes it (:func:`_bisect_on_arc` on a smooth function,
     where the smallest entry has kinks where the entries cross each other, and Brent's
     method takes bisection steps there).
@@ -954,7 +1182,8 @@ def _locate_vector_event(core, run, k, g, va, vb, end=None):
     cross = va[cand] / (va[cand] - vb[cand])
     j = int(cand[np.argmin(cross) if fall else np.argmax(cross)])
     xr, prec = _bisect_on_arc(core, run, k, lambda x: float(g(x[:n], x[n])[j]),
-                              float(va[j]), float(vb[j]), chord=True, end=end)
+                              float(va[j]), float(vb[j]), chord=True, end=end,
+                              start=start)
     if xr is None:
         return None, None
     v = np.asarray(g(xr[:n], xr[n]), dtype=float).copy()

@@ -65,6 +65,20 @@ class ContinuationSettings:
         bordered determinant), and locate them exactly.
     locate_tol : float
         Newton tolerance of the fold / branch-point location systems.
+    event_dips : bool
+        Also look for an event whose function has one sign at both ends of a step but
+        changes sign and back inside it: each entry's values and slopes along the tangent
+        at the step's ends give a cubic; where the cubic changes sign, points corrected on
+        the step's arc confirm it, and a confirmed crossing is an event like any other.
+        Costs one more evaluation of each event function per point (its slope, a forward
+        difference), and corrected points only on the steps where a cubic changes sign.
+    event_steps : bool
+        Approach an event's zero as a fold: where an event's value, extrapolated linearly
+        along the tangent, reaches 0 within half the next step, that step ends at most one
+        predicted distance past it (it shrinks by at most 20 at a time), so that a step
+        cannot pass over a stretch where the event has the other sign (a corrector that
+        jumps there sees the event at neither end). Uses the slopes of ``event_dips``
+        (computed where either is on); changes the steps, not the curve.
     compute_stability : bool
         Record the stability index when the problem has ``hessian``.
     store_states : bool
@@ -94,6 +108,8 @@ class ContinuationSettings:
     detect_branch_points: bool = True
     locate: bool = True
     locate_tol: float = 1e-12
+    event_dips: bool = True
+    event_steps: bool = True
     compute_stability: bool = True
     store_states: bool = True
     check_jacobian: bool = True

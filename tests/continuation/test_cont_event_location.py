@@ -133,15 +133,28 @@ def test_located_event_solves_the_augmented_system(bratu_branch):
     assert np.max(np.abs(ev.u - ref[:15])) < 2e-12
 
 
-def test_event_location_leaves_the_branch_bit_identical(bratu_branch):
+@pytest.mark.parametrize("steps", [False, True])
+def test_event_location_leaves_the_branch_bit_identical(bratu_branch, steps):
+    # without the approach step control (event_steps) the events change nothing of the
+    # branch; with it, the steps approaching each event, not the curve
     prob, br = bratu_branch
-    with_events = C.continue_branch(prob, np.zeros(15), 0.0, S, events={
-        "umax1": lambda u, p: float(np.max(u)) - 1.0, "p2": lambda u, p: p - 2.0})
+    with_events = C.continue_branch(prob, np.zeros(15), 0.0, S.replace(event_steps=steps),
+                                    events={"umax1": lambda u, p: float(np.max(u)) - 1.0,
+                                            "p2": lambda u, p: p - 2.0})
     evs = with_events.points("event")
     assert [sp.name for sp in evs] == ["p2", "umax1", "p2"]  # p = 2 up and down again
     assert all(sp.located for sp in evs)
     assert all(abs(sp.p - 2.0) < 2e-12 for sp in evs if sp.name == "p2")
-    assert np.array_equal(with_events.p, br.p) and np.array_equal(with_events.u, br.u)
+    if not steps:
+        assert np.array_equal(with_events.p, br.p) and np.array_equal(with_events.u, br.u)
+        return
+    assert not np.array_equal(with_events.p[:len(br.p)], br.p)
+    res = max(float(np.max(np.abs(prob.residual(u, p))))
+              for u, p in zip(with_events.u, with_events.p, strict=True))
+    assert res <= S.newton_tol
+    # the folds are the same points of the curve
+    f0, f1 = br.points("fold"), with_events.points("fold")
+    assert len(f0) == len(f1) and all(abs(a.p - b.p) < 1e-10 for a, b in zip(f0, f1, strict=True))
 
 
 # ---------------------------------------------------------------- vector events
@@ -244,7 +257,76 @@ def test_an_event_crossing_and_back_inside_a_step_cut_by_a_terminal_event_is_loc
     assert set(evs) == {"dip", "corner"}
     assert evs["corner"].located and abs(evs["corner"].p - 0.95) < 2e-12
     assert evs["dip"].located and evs["dip"].index == 1 and abs(evs["dip"].p - 0.9) < 2e-12
-    # without the terminal event the step's ends decide: no sign change, no event
+    # the dip's second root (1.0) lies past the corner, where the run ends
+    assert [sp.name for sp in br.points("event")].count("dip") == 1
+    # without the terminal event both of the dip's roots are located (_event_dip) ...
     free = C.continue_branch(LINE, np.array([0.8]), 0.8, st_.replace(p_max=1.2),
                              events={"dip": dip})
-    assert not free.points("event")
+    assert free.p[1] > 1.1
+    roots = sorted(sp.p for sp in free.points("event") if sp.located)
+    assert len(roots) == 2 and abs(roots[0] - 0.9) < 2e-12 and abs(roots[1] - 1.0) < 2e-12
+    # ... which the step's ends alone do not see: no sign change there, no event
+    ends = C.continue_branch(LINE, np.array([0.8]), 0.8,
+                             st_.replace(p_max=1.2, event_dips=False), events={"dip": dip})
+    assert np.array_equal(ends.p, free.p) and not ends.points("event")
+
+
+# ---------------------------------------------------------------- dips inside one step
+# On the line u = p, one step of 0.4 from 0.8 to 1.2: g = cosh(6 (p - 1)) - cosh(0.9) is
+# 0.378 at both ends and negative on (0.85, 1.15) only, down to -0.433 at p = 1: both roots
+# inside the step, 0.3 apart. Not a cubic, so the interpolant only points at the dip.
+DIP_C = np.cosh(0.9)
+
+
+def _cosh_dip(vector):
+    def g(u, p):
+        d = np.cosh(6.0 * (p - 1.0)) - DIP_C
+        return np.array([2.0, d, 1.0]) if vector else float(d)
+
+    return g
+
+
+@pytest.mark.parametrize("vector", [False, True])
+def test_an_event_crossing_and_back_inside_one_step_is_located_at_both_roots(vector):
+    st_ = LS.replace(ds0=0.4, ds_max=0.4, p_max=1.2)
+    br = C.continue_branch(LINE, np.array([0.8]), 0.8, st_, events={"dip": _cosh_dip(vector)})
+    assert list(br.p) == pytest.approx([0.8, 1.2], abs=1e-14)  # one step over the dip
+    evs = br.points("event")
+    assert [sp.index for sp in evs] == [1, 1] and all(sp.located for sp in evs)
+    roots = sorted(sp.p for sp in evs)
+    assert abs(roots[0] - 0.85) < 2e-12 and abs(roots[1] - 1.15) < 2e-12
+    # compared at the step's ends only, the event is not seen
+    ends = C.continue_branch(LINE, np.array([0.8]), 0.8, st_.replace(event_dips=False),
+                             events={"dip": _cosh_dip(vector)})
+    assert np.array_equal(ends.p, br.p) and not ends.points("event")
+
+
+@pytest.mark.parametrize("vector", [False, True])
+def test_a_terminal_event_dipping_inside_a_step_stops_the_run_at_its_first_root(vector):
+    st_ = LS.replace(ds0=0.4, ds_max=0.4)
+    br = C.continue_branch(LINE, np.array([0.8]), 0.8, st_, events={"dip": _cosh_dip(vector)},
+                           stop_on=("dip",))
+    assert br.status == C.STOPPED and len(br.p) == 2
+    (ev,) = br.points("event")
+    assert ev.located and abs(ev.p - 0.85) < 2e-12
+
+
+def test_an_event_that_comes_near_zero_without_crossing_gives_none():
+    # cosh(6 (p - 1)) - 0.95: 0.05 at p = 1, its least value; the cubic through the ends'
+    # values (0.861) and slopes (-+9.06) dips to -0.045 there, the corrected point says 0.05
+    def near(u, p):
+        return float(np.cosh(6.0 * (p - 1.0)) - 0.95)
+
+    calls = {"n": 0}
+    real = _core._point_at
+
+    def counted(*a, **k):
+        calls["n"] += 1
+        return real(*a, **k)
+
+    st_ = LS.replace(ds0=0.4, ds_max=0.4, p_max=1.2)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(_core, "_point_at", counted)
+        br = C.continue_branch(LINE, np.array([0.8]), 0.8, st_, events={"near": near})
+    assert len(br.p) == 2 and not br.points("event")
+    assert 1 <= calls["n"] <= _core._DIP_POINTS

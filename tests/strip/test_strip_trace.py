@@ -339,6 +339,92 @@ def test_a_folds_error_estimate_is_taken_on_the_branch_that_follows_its_own():
     assert coarse[2]["error_estimate"] == pytest.approx(0.680057, abs=1e-12)
 
 
+def _fold_branch_at_x4(delta):
+    """x = 4, n = 198 (the scene's resolution): the folded strip at ``delta``."""
+    S = discrete_strip_for(load_scene("fig3-strip", {"drop.distance_from_end": 4.0}))
+    assert S.n == 198
+    S = S.with_(delta=delta)
+    w = wrapped_state(S)
+    return S, solve_equilibrium(S, w.u, active=w.active, tol=1e-11)
+
+
+def _worst(S, br):
+    """The least held reaction (force) and free node's height (length) over the points of
+    the chain of segments ``br``."""
+    worst_r = min(float(np.min(sg.reactions[:, sg.active])) for sg in br.segments)
+    worst_z = min(float(np.min(np.array([S.with_(delta=d).heights(u) for d, u in
+                                          zip(sg.delta, sg.u, strict=True)])[:, ~sg.active]))
+                  for sg in br.segments)
+    return worst_r, worst_z
+
+
+@pytest.mark.parametrize("steps", [True, False])
+def test_a_step_that_would_jump_over_a_touch_down_is_shortened(steps):
+    # x = 4, n = 198: the folded strip traced down from the seed at Delta = 0.6. Node 130
+    # is free above Delta = 0.440179 and comes down to the ground there; held, its reaction
+    # is positive down to 0.415979, where it lifts off. Its gap, on the branch with it free,
+    # falls steeply towards 0.440179 (the fixed-set branch turns back just past it). From
+    # Delta = 0.443615 the step (0.018 in Delta) went past that turn, its corrector landed
+    # at 0.425729 on the part of the branch below the lift-off (node 130 free again, its
+    # gap positive at both ends): the touch-down, the held stretch and the lift-off were
+    # passed over, and the branch turned back up at 0.415979 and ended at 0.6 again.
+    # With the event approach (event_steps, continuation) the step ends at most one linear
+    # prediction past the gap's zero and is refused where its middle is off its arc.
+    S, eq = _fold_branch_at_x4(0.6)
+    assert eq.success
+    st = ContinuationSettings(**{**DEFAULTS, "direction": -1, "max_steps": 2000,
+                                 "event_steps": steps})
+    br = trace_discrete_branch(S, eq, (0.3, 0.6), st, restart=True, max_segments=200)
+    worst_r, worst_z = _worst(S, br)
+    assert worst_r > -1e-9 and worst_z > -1e-9, (worst_r, worst_z)
+    turns = [(round(t["delta"], 9), t["node"], t["kind"]) for t in br.turning_points
+             if t["delta"] < 0.45]
+    folds = [round(f["delta"], 9) for f in br.folds if f["delta"] < 0.45]
+    if not steps:
+        # measured without it: node 130 free from 0.443615 on, its gap reaches 0 at
+        # 0.415979 (a "touch-down" where, held, it lifts off), and the branch turns back up
+        # there, to the range's top
+        assert br.delta[-1] == pytest.approx(0.6, abs=1e-12)
+        assert turns == [(0.415979459, 130, "touch_down")] and folds == []
+        return
+    # down to the range's end through the touch-down, the lift-off and two smooth folds,
+    # each once (measured; the same with ds_max 0.004 instead of 0.02)
+    assert br.status == "parameter_bound" and br.delta[-1] == pytest.approx(0.3, abs=1e-12)
+    assert turns == [(0.415979459, 130, "lift_off"), (0.360263781, 130, "touch_down")]
+    assert folds == [0.426976647, 0.347382937]
+
+
+@pytest.mark.slow
+def test_the_trace_at_x4_is_admissible_and_its_fold_estimates_measured():
+    # the whole search at x = 4 (n = 198, refined at 297; ~35 s): every traced point a
+    # contact equilibrium, the folded strip's branch through the touch-down of node 130
+    # (the test above), and the folds' error estimates as measured
+    sc = load_scene("fig3-strip", {"drop.distance_from_end": 4.0})
+    bs = trace_contact_branches(sc)
+    S = discrete_strip_for(sc)
+    N = S.size
+    worst_z = min(float(np.min(S.with_(delta=float(p)).heights(v[:N])))
+                  for br in bs.branches for p, v in zip(br.p, br.u, strict=True))
+    worst_r = min(float(np.min(br.u[:, N:])) for br in bs.branches)
+    assert worst_z > -1e-9 and worst_r > -1e-9, (worst_z, worst_r)
+    low = [(round(f["value"], 9), f["kind"], f["event"]) for f in bs.folds
+           if f["branch"] == "fold at Delta = 0.6"]
+    assert low == [(0.347382937, "smooth", None), (0.360263781, "contact", "touch_down"),
+                   (0.415979459, "contact", "lift_off"), (0.426976647, "smooth", None)]
+    # the deposition's folds (0.90 .. 1.47): within 0.025 of the refined run's (measured
+    # up to 0.0224); the loop above has no counterpart at n = 297 (the seed at 0.6 lands
+    # on the branch from the start at 0.3, which has no fold below 0.5 there), and its
+    # contact folds and upper smooth fold are paired with the deposition's folds of the
+    # same kind, 0.87 .. 1.02 away (its lower smooth fold [1, 0] with none)
+    est = {round(f["value"], 6): f["error_estimate"] for f in bs.folds}
+    dep = [f["error_estimate"] for f in bs.folds if f["branch"].startswith("deposition")
+           and f["error_estimate"] is not None]
+    assert len(dep) >= 20 and max(dep) < 0.025
+    assert est[0.347383] is None
+    assert 0.8 < est[0.360264] < 1.1 and 0.8 < est[0.415979] < 1.1 and \
+        0.8 < est[0.426977] < 1.1
+
+
 def test_cli_branches_fig3_strip_traces_with_contact(tmp_path, capsys):
     out = tmp_path / "br"
     argv = ["branches", "fig3-strip", "--set", "drop.distance_from_end=2", "--set",
