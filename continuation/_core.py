@@ -427,7 +427,7 @@ class _Run:
         self.callback = callback
         self.p, self.u, self.t, self.ds, self.it, self.stab = [], [], [], [], [], []
         self.det, self.obs, self.ev_vals = [], [], []
-        # slopes of the events' values (entries) along the tangent, where event_dips asks
+        # slopes of the events' values (entries) along the tangent (event_dips, event_steps)
         self.ev_slopes = []
         self.sps: list[SpecialPoint] = []
         # factorization of the last step's bordered matrix (the row of the tangent at the

@@ -152,9 +152,9 @@ def test_event_location_leaves_the_branch_bit_identical(bratu_branch, steps):
     res = max(float(np.max(np.abs(prob.residual(u, p))))
               for u, p in zip(with_events.u, with_events.p, strict=True))
     assert res <= S.newton_tol
-    # the folds are the same points of the curve
+    # the fold is the same point of the curve (measured: 9e-16 apart)
     f0, f1 = br.points("fold"), with_events.points("fold")
-    assert len(f0) == len(f1) and all(abs(a.p - b.p) < 1e-10 for a, b in zip(f0, f1, strict=True))
+    assert len(f0) == len(f1) and all(abs(a.p - b.p) < 1e-12 for a, b in zip(f0, f1, strict=True))
 
 
 # ---------------------------------------------------------------- vector events
