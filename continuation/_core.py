@@ -975,9 +975,10 @@ def _detect(core, run, k, skip_first=False):
             run.sps.append(_event_point(core, run, k, name, g, ga, va, gb, vb))
     # An event of one sign at both ends that changes sign and back inside the step: a cubic
     # through its values and slopes at the ends says where it may, corrected points on the
-    # step's arc confirm it (_event_dip). Measured on the strip (x = 4, n = 297): a free
-    # node's gap negative over 0.013 in Delta, down to -0.23 q h, inside one step of 0.017;
-    # compared at the ends only, the trace walked through it.
+    # step's arc confirm it (_event_dip). Measured on the strip (x = 4, n = 297, without
+    # event_steps): a free node's gap negative over 0.013-0.015 in Delta, down to
+    # -0.23 q h, inside one step of 0.017; compared at the ends only, the trace walked
+    # through it.
     dips = []
     if s.locate and s.event_dips:
         for name, g in run.events.items():
