@@ -557,10 +557,15 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
     cos_turn = math.cos(s.max_turn)
     mp = s.corrector == "moore-penrose"
     hook = getattr(core.ev.problem, "_on_accept", None)
+
+    def event_reach():
+        # the arclength from the last point to the events' nearest predicted zero
+        # (event_steps), once per point
+        return (_event_reach(run.ev_vals[-1], run.ev_slopes[-1])
+                if s.event_steps and run.ev_slopes else math.inf)
+
+    reach = event_reach()
     for step in range(1, s.max_steps + 1):
-        # the arclength to the events' nearest predicted zero (event_steps)
-        reach = _event_reach(run.ev_vals[-1], run.ev_slopes[-1]) \
-            if s.event_steps and run.ev_slopes else math.inf
         # ---- predictor-corrector with step rejection
         last_reason = ""
         while True:
@@ -680,9 +685,8 @@ def _run_direction(core: _Core, x0, t0, det0, events, stop_on, callback, skip_fi
         ds = _fold_approach_step(ds, ds_used, t[n], t_new[n], s.ds_min)
         # ... and likewise an event's zero, predicted from its value and slope at the new
         # point: a longer step could pass over a stretch where it has the other sign
-        if s.event_steps and run.ev_slopes:
-            ds = _event_approach_step(ds, ds_used, _event_reach(run.ev_vals[-1],
-                                                                run.ev_slopes[-1]), s.ds_min)
+        reach = event_reach()
+        ds = _event_approach_step(ds, ds_used, reach, s.ds_min)
         x, t = x_new, t_new
     run.status = B.MAX_STEPS
     run.message = (f"reached max_steps={s.max_steps} at p={x[n]:.10g}. Try increasing "
@@ -1055,9 +1059,8 @@ def _dip_fit(taus, vals, da, db):
     m = taus.size + 2
     powers = np.arange(m - 1, -1, -1)
     rows = [taus[i] ** powers for i in range(taus.size)]
-    dpow = np.maximum(powers - 1, 0)
     rows.append(np.where(powers == 1, 1.0, 0.0))  # slope at 0
-    rows.append(powers * 1.0 ** dpow)  # slope at 1
+    rows.append(powers.astype(float))  # slope at 1: the sum of p c_p
     rhs = np.vstack([np.asarray(vals, float), da[None, :], db[None, :]])
     return np.linalg.solve(np.array(rows), rhs)
 

@@ -353,10 +353,10 @@ def cmd_impact(args) -> int:
             f"steps, run {res.run_time_s:.2f} s (+ compile/load {res.compile_time_s:.2f} s), "
             f"{res.status}"
         )
-        for rep_ in res.settings.get("rest_repeats", []):
-            print(f"  at rest at t = {rep_['t_end']:.4g} on a turn of a slow swing (half-period "
-                  f"{rep_['swing_half_period']:.3g}): run again with a rest test of kinetic "
-                  f"energy {rep_['rest_kinetic']:.3g} for {rep_['rest_time']:.4g}")
+        for r in res.settings.get("rest_repeats", []):
+            print(f"  at rest at t = {r['t_end']:.4g} on a turn of a slow swing (half-period "
+                  f"{r['swing_half_period']:.3g}): run again with a rest test of kinetic "
+                  f"energy {r['rest_kinetic']:.3g} for {r['rest_time']:.4g}")
         if res.rod_crossing_time is not None or res.interface_crossing_time is not None:
             print(
                 f"  flagged: rod crosses itself at t = {res.rod_crossing_time}, interface "

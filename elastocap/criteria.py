@@ -373,7 +373,9 @@ def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,
             f"the verdict settled at t = {decision:.4g}, after the rod crossed itself at "
             f"t = {rod_crossing_time:.4g} (the model has no contact of the rod with itself)")
     swing = swing_range(times, margins) if at_rest and margins is not None else None
-    if swing is not None and swing.lo < 0.0 < swing.hi:
+    if swing is not None and not swing.lo < 0.0 < swing.hi:
+        swing = None  # a swing that cannot carry the margin across 0 changes nothing
+    if swing is not None:
         where = ("" if swing.limit is None
                  else f", its damped swing extrapolates to rest at {swing.limit:+.4g}")
         reasons.append(
@@ -384,8 +386,8 @@ def impact_verdict(*, criterion, encapsulated, times, success, at_rest, t_max,
             "half-period)")
     outcome = ENCAPSULATED if enc[-1] else OPEN
     if reasons:
-        only_swing = len(reasons) == 1 and swing is not None and swing.lo < 0.0 < swing.hi
         return ImpactVerdict(UNDECIDED, criterion, bool(at_rest), decision,
                              f"would read {outcome}, but " + "; ".join(reasons),
-                             swing.half_period if only_swing else None)
+                             swing.half_period if swing is not None and len(reasons) == 1
+                             else None)
     return ImpactVerdict(outcome, criterion, bool(at_rest), decision)
