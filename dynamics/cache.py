@@ -297,7 +297,10 @@ def is_compiled(module, functions) -> bool:
     generated ``module`` (its data files, named ``<module>.<function>-<line>.py<ver>*.nbc``
     as numba's caching documentation describes, beside the module or under
     ``$NUMBA_CACHE_DIR``).  Used to announce a first compilation; a wrong answer costs
-    only the announcement."""
+    only the announcement.  Functions this process has compiled or loaded already
+    (a numba dispatcher's ``signatures``) are compiled without a look at the disk."""
+    if all(getattr(getattr(module, f, None), "signatures", None) for f in functions):
+        return True
     name = module.__name__
     numba_dir = os.environ.get("NUMBA_CACHE_DIR")
     if numba_dir:

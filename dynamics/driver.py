@@ -42,7 +42,7 @@ import math
 import os
 import secrets
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -193,6 +193,16 @@ class SimulationResult:
     events_fired: list = field(default_factory=list)
     contact_forces: np.ndarray | None = None
 
+    def __eq__(self, other) -> bool:
+        # field by field, arrays by value with NaN equal to NaN (the generated == would ask
+        # an array for its truth value and raise): a saved and loaded result equals itself
+        if type(other) is not type(self):
+            return NotImplemented
+        return all(_same_value(getattr(self, f.name), getattr(other, f.name))
+                   for f in fields(self))
+
+    __hash__ = None
+
     @property
     def steps(self) -> int:
         """Accepted steps (``stats["steps"]``)."""
@@ -268,6 +278,23 @@ class SimulationResult:
         meta["events_fired"] = [tuple(e) for e in meta["events_fired"]]
         return cls(times=times, positions=pos, velocities=vel, energies=energies,
                    contact_forces=cf, **meta)
+
+
+def _same_value(a, b) -> bool:
+    """Equality of result data: arrays by shape and elements (NaN equal to NaN), dicts,
+    lists and tuples item by item (a tuple equals a list: JSON keeps no tuples)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        if a is None or b is None:
+            return a is b
+        a, b = np.asarray(a), np.asarray(b)
+        return a.shape == b.shape and bool(np.array_equal(a, b, equal_nan=a.dtype.kind in "fc"))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same_value(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same_value(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b)
 
 
 # ----------------------------------------------------------------------------- checks

@@ -47,6 +47,7 @@ refused before it starts.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -192,6 +193,27 @@ class ImpactResult:
     def to_dict(self) -> dict:
         d = {k: v for k, v in self.__dict__.items() if k not in ("simulation", "measure_history")}
         return d
+
+    def __eq__(self, other) -> bool:
+        # what it saves (its JSON, NaN equal to NaN), its measures and its run, by value:
+        # the generated == would ask an array for its truth value and raise
+        if type(other) is not type(self):
+            return NotImplemented
+        mine, theirs = self.measure_history, other.measure_history
+        same_measures = (mine is None and theirs is None) or (
+            mine is not None and theirs is not None
+            and np.array_equal(mine, theirs, equal_nan=True))
+        return (same_measures and self.simulation == other.simulation
+                and _saved(self.to_dict()) == _saved(other.to_dict()))
+
+    __hash__ = None
+
+
+def _saved(d: dict) -> str:
+    """``d`` as JSON text, keys sorted, NaN and infinities as JSON's words for them (so a
+    NaN equals a NaN and +inf differs from -inf), numpy values as Python ones."""
+    return json.dumps(d, sort_keys=True,
+                      default=lambda o: o.tolist() if hasattr(o, "tolist") else repr(o))
 
 
 def energy_rise(times, total, event_times) -> tuple[float, float]:

@@ -205,17 +205,16 @@ def _nearest_tested_segment(x, i, d, h):
     """Distance, segment, closest point and unit normal from node i to the nearest segment
     the contact tests against it (arc gap >= pi d / 2 from both of its nodes), in numpy."""
     s = np.arange(len(x)) * h
-    best = (np.inf, -1, 0.0, None)
-    for j in range(len(x) - 1):
-        if min(abs(s[i] - s[j]), abs(s[i] - s[j + 1])) < 0.5 * np.pi * d:
-            continue
-        e = x[j + 1] - x[j]
-        u = float(np.clip((x[i] - x[j]) @ e / (e @ e), 0.0, 1.0))
-        q = x[i] - (x[j] + u * e)
-        dd = float(np.hypot(*q))
-        if dd < best[0]:
-            best = (dd, j, u, q / dd)
-    return best
+    j = np.arange(len(x) - 1)
+    j = j[np.minimum(abs(s[i] - s[j]), abs(s[i] - s[j + 1])) >= 0.5 * np.pi * d]
+    if j.size == 0:
+        return (np.inf, -1, 0.0, None)
+    e = x[j + 1] - x[j]
+    u = np.clip(np.einsum("ij,ij->i", x[i] - x[j], e) / np.einsum("ij,ij->i", e, e), 0.0, 1.0)
+    q = x[i] - (x[j] + u[:, None] * e)
+    dd = np.hypot(q[:, 0], q[:, 1])
+    k = int(np.argmin(dd))  # the first of equal distances, as a loop over j would keep
+    return (float(dd[k]), int(j[k]), float(u[k]), q[k] / dd[k])
 
 
 @pytest.mark.parametrize("method", ["rattle", "midpoint"])

@@ -92,6 +92,14 @@ def test_stats_are_named_and_round_trip(tmp_path):
         back = SimulationResult.load_npz(p)
         assert back.stats == res.stats and back.method == method
         assert np.array_equal(back.positions, res.positions)
+        # a result compares by value (the generated == would raise on its arrays)
+        assert back == res and not back != res
+        moved = SimulationResult.load_npz(p)
+        moved.positions[-1, -1, 0] += 1e-15
+        assert moved != res
+        moved = SimulationResult.load_npz(p)
+        moved.energies["kinetic"] = moved.energies["kinetic"][:-1]
+        assert moved != res
     # the midpoint method's own counters are in its stats
     assert {"jacobians", "contact_updates"} <= set(res.stats)
 

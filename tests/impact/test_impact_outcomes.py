@@ -47,6 +47,26 @@ def test_what_the_model_leaves_out_is_flagged(runs):
     assert M[k] > 1.0 and M[k - 1] <= 1.0 and np.all(M[k:] > 1.0)
 
 
+def test_results_compare_by_value(runs):
+    """An impact result compares field by field, its arrays and its run by value (the
+    generated == would raise on the arrays)."""
+    import copy
+    import dataclasses
+
+    a = runs[4.0]
+    assert a == copy.deepcopy(a) and a != runs[2.5]
+    assert a != dataclasses.replace(a, final_measure=np.nextafter(a.final_measure, 2.0))
+    other = copy.deepcopy(a)
+    other.measure_history[-1] += 1e-15
+    assert a != other
+    other = copy.deepcopy(a)
+    other.simulation.velocities[0, 0] += 1e-15
+    assert a != other
+    # a measure that could not be computed (NaN) equals itself
+    nan = dataclasses.replace(a, final_measure=float("nan"))
+    assert nan == copy.deepcopy(nan)
+
+
 def test_caption_damping_leaves_both_open():
     """The caption's literal damping 1.04 does not reproduce the paper's Fig 5b."""
     r = run_impact(load_scene("supp-fig5", {"drop.wetted_length": 4.0, "effects.damping": 1.04}))
