@@ -2219,26 +2219,28 @@ def _fold_errors(folds, refined, followed) -> None:
     """Set each fold's ``error_estimate``: its distance to the nearest fold of the same
     kind and stability change at the finer resolution (``refined``), on the branch that
     follows the fold's own branch there (``followed``: {refined branch's label: label of
-    the branch it follows}, :func:`_followed`) where one does; where none does, on the
-    refined branches that follow no other branch; None where there is none. A fold of
-    another branch is no estimate of this one's: at x = 4.5, n = 198, a smooth fold at
-    0.3948 without a counterpart at n = 297 was paired with one at 1.3801 on the
-    deposition's branch, and at x = 4 the folds at 0.3603, 0.4160 and 0.4270 of a branch
-    that no refined branch follows with the deposition's folds 0.87 to 1.02 away."""
+    the branch it follows}, :func:`_followed`) where one does, on any branch otherwise,
+    when that refined fold is nearer to this fold than to any other of its kind and change
+    (on its branch where it is followed, on any otherwise); None where there is none. A
+    fold of another branch is no estimate of this one's: at x = 4.5, n = 198, a smooth
+    fold at 0.3948 without a counterpart at n = 297 was paired with one at 1.3801 on the
+    deposition's branch (0.0047 from the deposition's own fold), and at x = 4 the folds at
+    0.3603, 0.4160 and 0.4270 of a branch that no refined branch follows with the
+    deposition's folds 0.87 to 1.02 away."""
+    def alike(a, b):
+        return a["kind"] == b["kind"] and a["stability_change"] == b["stability_change"]
+
     for fo in folds:
-        same = [g for g in refined if g["kind"] == fo["kind"]
-                and g["stability_change"] == fo["stability_change"]]
+        same = [g for g in refined if alike(g, fo)]
+        rivals = [f for f in folds if alike(f, fo)]
         if fo["branch"] in followed.values():
             same = [g for g in same if followed.get(g["branch"]) == fo["branch"]]
-        else:
-            # a refined fold on a branch that follows another one is that one's
-            same = [g for g in same if g["branch"] not in followed]
-        fo["error_estimate"] = _nearest(fo["value"], [g["value"] for g in same])
-
-
-def _nearest(value, candidates):
-    d = [abs(value - c) for c in candidates]
-    return min(d) if d else None
+            rivals = [f for f in rivals if f["branch"] == fo["branch"]]
+        best = min(same, key=lambda g: abs(g["value"] - fo["value"]), default=None)
+        if best is not None and min(
+                rivals, key=lambda f: abs(f["value"] - best["value"])) is not fo:
+            best = None  # another fold's counterpart
+        fo["error_estimate"] = None if best is None else abs(best["value"] - fo["value"])
 
 
 def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", prange=None,

@@ -335,12 +335,18 @@ def test_a_folds_error_estimate_is_taken_on_the_branch_that_follows_its_own():
     _fold_errors(coarse, fine, followed)
     assert coarse[0]["error_estimate"] is None
     assert coarse[1]["error_estimate"] == pytest.approx(0.004716849, abs=1e-12)
-    # a branch that no refined branch follows: not on a refined branch that follows
-    # another (the deposition's fold, 0.68 away, is the deposition's counterpart) ...
+    # a branch that no refined branch follows: not with a refined fold nearer to another
+    # fold of its kind (the deposition's, 0.68 away, is the deposition's counterpart) ...
     assert coarse[2]["error_estimate"] is None
-    # ... but on one that follows none (found next to a special point at n = 297)
+    # ... but with one nearest to it (here on a branch found next to a special point)
     _fold_errors(coarse, fine + [fold(0.71, "next to a fold")], followed)
     assert coarse[2]["error_estimate"] == pytest.approx(0.01, abs=1e-12)
+    assert coarse[1]["error_estimate"] == pytest.approx(0.004716849, abs=1e-12)
+    # on a followed branch too: a second fold of the deposition's, at 1.2, whose
+    # counterpart is missing, is not paired with the one at 1.375's
+    coarse.append(fold(1.2, "deposition at Delta = 0.4"))
+    _fold_errors(coarse, fine, followed)
+    assert coarse[3]["error_estimate"] is None
     assert coarse[1]["error_estimate"] == pytest.approx(0.004716849, abs=1e-12)
 
 
