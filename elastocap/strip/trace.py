@@ -2216,31 +2216,43 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
 
 
 def _fold_errors(folds, refined, followed) -> None:
-    """Set each fold's ``error_estimate``: its distance to the nearest fold of the same
-    kind and stability change at the finer resolution (``refined``), on the branch that
-    follows the fold's own branch there (``followed``: {refined branch's label: label of
-    the branch it follows}, :func:`_followed`) where one does, on any branch otherwise,
-    when that refined fold is nearer to this fold than to any other of its kind and change
-    (on its branch where it is followed, on any otherwise); None where there is none. A
-    fold of another branch is no estimate of this one's: at x = 4.5, n = 198, a smooth
-    fold at 0.3948 without a counterpart at n = 297 was paired with one at 1.3801 on the
-    deposition's branch (0.0047 from the deposition's own fold), and at x = 4 the folds at
-    0.3603, 0.4160 and 0.4270 of a branch that no refined branch follows with the
-    deposition's folds 0.87 to 1.02 away."""
-    def alike(a, b):
-        return a["kind"] == b["kind"] and a["stability_change"] == b["stability_change"]
+    """Set each fold's ``error_estimate``: its distance to its counterpart among the folds
+    of the same kind and stability change at the finer resolution (``refined``); None
+    where it has none.  Counterparts are paired one to one, the pairs of least total
+    distance (:func:`scipy.optimize.linear_sum_assignment`): first the folds of each branch
+    with those of the branch that follows it there (``followed``: {refined branch's label:
+    label of the branch it follows}, :func:`_followed`), then the folds of branches that no
+    refined branch follows with the refined folds left.  A fold that is another fold's
+    counterpart is no estimate of this one's: at x = 4.5, n = 198, a smooth fold at 0.3948
+    without a counterpart at n = 297 was paired with one at 1.3801 on the deposition's
+    branch (0.0047 from the deposition's own fold), and at x = 4 the folds at 0.3603,
+    0.4160 and 0.4270 of a branch that no refined branch follows with the deposition's
+    folds' counterparts, 0.87 to 1.02 away; a refined fold nearest to two folds (the mirror
+    pairs of a drop centred on a node) is the counterpart of one."""
+    from scipy.optimize import linear_sum_assignment
 
+    def kind(f):
+        return (f["kind"], tuple(f["stability_change"]))
+
+    def pair(mine, theirs):
+        for k in sorted({kind(f) for f in mine}):
+            a = [f for f in mine if kind(f) == k]
+            b = [g for g in theirs if kind(g) == k and id(g) not in used]
+            if not b:
+                continue
+            cost = np.abs(np.array([f["value"] for f in a])[:, None]
+                          - np.array([g["value"] for g in b])[None, :])
+            for r, c in zip(*linear_sum_assignment(cost), strict=True):
+                a[r]["error_estimate"] = float(cost[r, c])
+                used.add(id(b[c]))
+
+    used = set()
     for fo in folds:
-        same = [g for g in refined if alike(g, fo)]
-        rivals = [f for f in folds if alike(f, fo)]
-        if fo["branch"] in followed.values():
-            same = [g for g in same if followed.get(g["branch"]) == fo["branch"]]
-            rivals = [f for f in rivals if f["branch"] == fo["branch"]]
-        best = min(same, key=lambda g: abs(g["value"] - fo["value"]), default=None)
-        if best is not None and min(
-                rivals, key=lambda f: abs(f["value"] - best["value"])) is not fo:
-            best = None  # another fold's counterpart
-        fo["error_estimate"] = None if best is None else abs(best["value"] - fo["value"])
+        fo["error_estimate"] = None
+    for label in sorted({f["branch"] for f in folds} & set(followed.values())):
+        pair([f for f in folds if f["branch"] == label],
+             [g for g in refined if followed.get(g["branch"]) == label])
+    pair([f for f in folds if f["branch"] not in followed.values()], refined)
 
 
 def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", prange=None,

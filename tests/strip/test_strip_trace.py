@@ -335,10 +335,10 @@ def test_a_folds_error_estimate_is_taken_on_the_branch_that_follows_its_own():
     _fold_errors(coarse, fine, followed)
     assert coarse[0]["error_estimate"] is None
     assert coarse[1]["error_estimate"] == pytest.approx(0.004716849, abs=1e-12)
-    # a branch that no refined branch follows: not with a refined fold nearer to another
-    # fold of its kind (the deposition's, 0.68 away, is the deposition's counterpart) ...
+    # a branch that no refined branch follows: not with a refined fold that is another
+    # fold's counterpart (the deposition's, 0.68 away) ...
     assert coarse[2]["error_estimate"] is None
-    # ... but with one nearest to it (here on a branch found next to a special point)
+    # ... but with one left (here on a branch found next to a special point)
     _fold_errors(coarse, fine + [fold(0.71, "next to a fold")], followed)
     assert coarse[2]["error_estimate"] == pytest.approx(0.01, abs=1e-12)
     assert coarse[1]["error_estimate"] == pytest.approx(0.004716849, abs=1e-12)
@@ -348,6 +348,15 @@ def test_a_folds_error_estimate_is_taken_on_the_branch_that_follows_its_own():
     _fold_errors(coarse, fine, followed)
     assert coarse[3]["error_estimate"] is None
     assert coarse[1]["error_estimate"] == pytest.approx(0.004716849, abs=1e-12)
+    # mirror pairs (a drop centred on a node): two folds at one value, two at the finer
+    # resolution, each paired; three against two: the farthest has no counterpart
+    pairs = [fold(0.62, "deposition at Delta = 0.4"), fold(0.62, "deposition at Delta = 0.4")]
+    mirror = [fold(0.6255, "deposition at Delta = 0.4") for _ in range(2)]
+    _fold_errors(pairs, mirror, followed)
+    assert [f["error_estimate"] for f in pairs] == [pytest.approx(0.0055, abs=1e-12)] * 2
+    pairs.append(fold(0.5, "deposition at Delta = 0.4"))
+    _fold_errors(pairs, mirror, followed)
+    assert pairs[2]["error_estimate"] is None
 
 
 def _fold_branch_at_x4(delta):
