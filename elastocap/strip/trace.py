@@ -2216,23 +2216,33 @@ def _analyse(strip: DiscreteStrip, lo: float, hi: float, progress=None, follow=N
 
 
 def _fold_errors(folds, refined, followed) -> None:
-    """Set each fold's ``error_estimate``: its distance to its counterpart among the folds
-    of the same kind and stability change at the finer resolution (``refined``); None
-    where it has none.  Counterparts are paired one to one, the pairs of least total
-    distance (:func:`scipy.optimize.linear_sum_assignment`): first the folds of each branch
-    with those of the branch that follows it there (``followed``: {refined branch's label:
-    label of the branch it follows}, :func:`_followed`), then the folds of branches that no
-    refined branch follows with the refined folds left.  A fold that is another fold's
-    counterpart is no estimate of this one's: at x = 4.5, n = 198, a smooth fold at 0.3948
-    without a counterpart at n = 297 was paired with one at 1.3801 on the deposition's
-    branch (0.0047 from the deposition's own fold), and at x = 4 the folds at 0.3603,
-    0.4160 and 0.4270 of a branch that no refined branch follows with the deposition's
-    folds' counterparts, 0.87 to 1.02 away; a refined fold nearest to two folds (the mirror
-    pairs of a drop centred on a node) is the counterpart of one."""
+    """Set each fold's ``error_estimate``: the distance in Delta to its counterpart among
+    the folds of the same kind and stability change at the finer resolution (``refined``);
+    None where it has none.
+
+    Folds are points (Delta, measure) of their branches, and a fold's counterpart moves by
+    the discretization error in both. Counterparts are paired one to one, the pairs of
+    least total distance in that plane (:func:`scipy.optimize.linear_sum_assignment`):
+    first the folds of each branch with those of the branch that follows it there
+    (``followed``: {refined branch's label: label of the branch it follows},
+    :func:`_followed`), then the folds of branches that no refined branch follows with the
+    refined folds left. A pair is kept only when no other fold of the kind, at either
+    resolution, is strictly nearer to one of its two folds than the other is: then the
+    refined fold is another fold's counterpart, or this fold has another, and a fold of
+    another branch is no estimate of this one's. Measured: at x = 4.5, n = 198, a smooth
+    fold at 0.3948 without a counterpart at n = 297 was paired with one at 1.3801 on the
+    deposition's branch (0.0047 from the deposition's own fold); at x = 4 a contact fold
+    at 0.3603 (measure 1.00) of a branch that no refined branch follows with one at 1.3793
+    (measure -0.09), 0.019 and 0.18 in the plane from the deposition's fold at 1.4220; the
+    mirror pairs of a drop centred on a node, two folds at one point, are each paired."""
     from scipy.optimize import linear_sum_assignment
 
     def kind(f):
-        return (f["kind"], tuple(f["stability_change"]))
+        return (f["kind"], tuple(f["stability_change"] or ()))
+
+    def point(f):
+        m = f.get("measure")
+        return np.array([f["value"], m if m is not None and math.isfinite(m) else 0.0])
 
     def pair(mine, theirs):
         for k in sorted({kind(f) for f in mine}):
@@ -2240,10 +2250,17 @@ def _fold_errors(folds, refined, followed) -> None:
             b = [g for g in theirs if kind(g) == k and id(g) not in used]
             if not b:
                 continue
-            cost = np.abs(np.array([f["value"] for f in a])[:, None]
-                          - np.array([g["value"] for g in b])[None, :])
+            pa = np.array([point(f) for f in a])
+            pb = np.array([point(g) for g in b])
+            cost = np.hypot(*(pa[:, None, :] - pb[None, :, :]).transpose(2, 0, 1))
+            coarse_k = np.array([point(f) for f in folds if kind(f) == k])
+            fine_k = np.array([point(g) for g in refined if kind(g) == k])
             for r, c in zip(*linear_sum_assignment(cost), strict=True):
-                a[r]["error_estimate"] = float(cost[r, c])
+                d = cost[r, c]
+                if (np.hypot(*(coarse_k - pb[c]).T) < d).any() or \
+                        (np.hypot(*(fine_k - pa[r]).T) < d).any():
+                    continue  # another fold's counterpart, or this one has another
+                a[r]["error_estimate"] = abs(a[r]["value"] - b[c]["value"])
                 used.add(id(b[c]))
 
     used = set()

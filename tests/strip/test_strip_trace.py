@@ -323,9 +323,9 @@ def test_a_folds_error_estimate_is_taken_on_the_branch_that_follows_its_own():
     assert followed == {"start at Delta = 0.3": "fold at Delta = 0.6",
                         "deposition at Delta = 0.4": "deposition at Delta = 0.4"}
 
-    def fold(value, branch, change=(0, 1)):
+    def fold(value, branch, change=(0, 1), measure=0.0):
         return {"value": value, "kind": "smooth", "stability_change": list(change),
-                "branch": branch}
+                "branch": branch, "measure": measure}
 
     coarse = [fold(0.394794863, "fold at Delta = 0.6"),
               fold(1.375340151, "deposition at Delta = 0.4"),
@@ -357,6 +357,13 @@ def test_a_folds_error_estimate_is_taken_on_the_branch_that_follows_its_own():
     pairs.append(fold(0.5, "deposition at Delta = 0.4"))
     _fold_errors(pairs, mirror, followed)
     assert pairs[2]["error_estimate"] is None
+    # a fold is a point (Delta, measure): measured at x = 4, n = 198, a contact fold at
+    # 0.984720 (measure 0.113) has a fold of its kind at n = 297 at 0.984347 with measure
+    # 0.768, and one at 0.962485 with measure 0.139: its counterpart is the second
+    one = [fold(0.984720, "deposition at Delta = 0.4", measure=0.1126)]
+    _fold_errors(one, [fold(0.984347, "deposition at Delta = 0.4", measure=0.7680),
+                       fold(0.962485, "deposition at Delta = 0.4", measure=0.1394)], followed)
+    assert one[0]["error_estimate"] == pytest.approx(0.022235, abs=1e-12)
 
 
 def _fold_branch_at_x4(delta):
