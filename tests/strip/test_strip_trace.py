@@ -13,6 +13,8 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from continuation import ContinuationSettings
 from elastocap.cli import main
@@ -364,6 +366,55 @@ def test_a_folds_error_estimate_is_taken_on_the_branch_that_follows_its_own():
     _fold_errors(one, [fold(0.984347, "deposition at Delta = 0.4", measure=0.7680),
                        fold(0.962485, "deposition at Delta = 0.4", measure=0.1394)], followed)
     assert one[0]["error_estimate"] == pytest.approx(0.022235, abs=1e-12)
+
+
+@settings(max_examples=100)
+@given(st.lists(st.tuples(st.one_of(st.floats(0.3, 2.0), st.floats(0.9, 0.902)),
+                          st.floats(-1.0, 3.0),
+                          st.sampled_from(["smooth", "contact"]),
+                          st.sampled_from([(0, 1), (1, 0), (1, 2)])),
+                min_size=1, max_size=12),
+       st.floats(-1e-3, 1e-3), st.floats(-1e-3, 1e-3), st.randoms(use_true_random=False))
+def test_fold_pairing_on_families_of_fold_sets(points, dd, dm, rnd):
+    """Random fold sets (Delta, measure, kind, stability change) on two branches, one
+    followed and one not, some in a cluster in Delta (as contact folds are), against their
+    copies moved by (dd, dm) at the finer resolution (within 1e-3 where the folds of a kind
+    are 1e-2 apart or more in the plane): each fold is paired
+    with its own copy (estimate |dd|), whatever the order of the refined list; a fold with
+    its copy removed has none or a copy of another fold that no other fold is nearer to."""
+    from collections import defaultdict
+
+    by_kind = defaultdict(list)
+    for d, m, k, c in points:
+        by_kind[(k, c)].append((d, m))
+    for pts in by_kind.values():
+        for i, (a, b) in enumerate(pts):
+            for c_, e in pts[:i]:
+                assume(np.hypot(a - c_, b - e) >= 1e-2)
+    followed = {"fine deposition": "deposition"}
+    coarse = [{"value": d, "measure": m, "kind": k, "stability_change": list(c),
+               "branch": "deposition" if j % 2 else "loop"}
+              for j, (d, m, k, c) in enumerate(points)]
+    fine = [{**f, "value": f["value"] + dd, "measure": f["measure"] + dm,
+             "branch": "fine deposition" if f["branch"] == "deposition" else "fine loop"}
+            for f in coarse]
+    rnd.shuffle(fine)
+    _fold_errors(coarse, fine, followed)
+    assert all(f["error_estimate"] == pytest.approx(abs(dd), abs=1e-12) for f in coarse)
+    # remove one copy: its fold has no estimate, or one from a copy no other fold claims
+    gone = rnd.randrange(len(fine))
+    lost = next(f for f in coarse if f["value"] + dd == fine[gone]["value"]
+                and f["measure"] + dm == fine[gone]["measure"])
+    rest = fine[:gone] + fine[gone + 1:]
+    _fold_errors(coarse, rest, followed)
+    for f in coarse:
+        if f is not lost:
+            assert f["error_estimate"] == pytest.approx(abs(dd), abs=1e-12)
+    est = lost["error_estimate"]
+    if est is not None:
+        kin = [g for g in rest if g["kind"] == lost["kind"]
+               and g["stability_change"] == lost["stability_change"]]
+        assert any(abs(abs(g["value"] - lost["value"]) - est) < 1e-12 for g in kin)
 
 
 def _fold_branch_at_x4(delta):
