@@ -2234,14 +2234,15 @@ def _fold_errors(folds, refined, followed) -> None:
     :func:`_followed`), then the folds of branches that no refined branch follows with the
     refined folds left. A pair is kept only when no other fold of the kind, at either
     resolution, is nearer (by more than :data:`TIE`) to one of its two folds than the
-    other is: then the
-    refined fold is another fold's counterpart, or this fold has another, and a fold of
-    another branch is no estimate of this one's. Measured: at x = 4.5, n = 198, a smooth
-    fold at 0.3948 without a counterpart at n = 297 was paired with one at 1.3801 on the
-    deposition's branch (0.0047 from the deposition's own fold); at x = 4 a contact fold
-    at 0.3603 (measure 1.00) of a branch that no refined branch follows with one at 1.3793
-    (measure -0.09), 0.019 and 0.18 in the plane from the deposition's fold at 1.4220; the
-    mirror pairs of a drop centred on a node, two folds at one point, are each paired."""
+    other is: else the refined fold is another fold's counterpart, or this fold has
+    another, and a fold of another branch is no estimate of this one's. A fold without a
+    finite measure is placed at measure 0 (paired by Delta alone). Measured: at x = 4.5,
+    n = 198, a smooth fold at 0.3948 without a counterpart at n = 297 was paired with one
+    at 1.3801 on the deposition's branch (0.0047 from the deposition's own fold); at x = 4
+    a contact fold at 0.3603 (measure 1.00) of a branch that no refined branch follows
+    with one at 1.3793 (measure -0.09), which is 0.19 in the plane from the deposition's
+    fold at 1.4220 (measure -0.27); the mirror pairs of a drop centred on a node, two folds
+    at one point, are each paired."""
     from scipy.optimize import linear_sum_assignment
 
     def kind(f):
@@ -2251,6 +2252,10 @@ def _fold_errors(folds, refined, followed) -> None:
         m = f.get("measure")
         return np.array([f["value"], m if m is not None and math.isfinite(m) else 0.0])
 
+    def near(p, q):
+        """Distances between the points (rows) of p and q."""
+        return np.hypot(*(p[:, None, :] - q[None, :, :]).transpose(2, 0, 1))
+
     def pair(mine, theirs):
         for k in sorted({kind(f) for f in mine}):
             a = [f for f in mine if kind(f) == k]
@@ -2259,13 +2264,13 @@ def _fold_errors(folds, refined, followed) -> None:
                 continue
             pa = np.array([point(f) for f in a])
             pb = np.array([point(g) for g in b])
-            cost = np.hypot(*(pa[:, None, :] - pb[None, :, :]).transpose(2, 0, 1))
-            coarse_k = np.array([point(f) for f in folds if kind(f) == k])
-            fine_k = np.array([point(g) for g in refined if kind(g) == k])
+            cost = near(pa, pb)
+            # every fold of the kind at each resolution, against this pairing's folds
+            rival_a = near(np.array([point(f) for f in folds if kind(f) == k]), pb)
+            rival_b = near(pa, np.array([point(g) for g in refined if kind(g) == k]))
             for r, c in zip(*linear_sum_assignment(cost), strict=True):
                 d = cost[r, c] - TIE  # mirror pairs: equal but for round-off
-                if (np.hypot(*(coarse_k - pb[c]).T) < d).any() or \
-                        (np.hypot(*(fine_k - pa[r]).T) < d).any():
+                if (rival_a[:, c] < d).any() or (rival_b[r] < d).any():
                     continue  # another fold's counterpart, or this one has another
                 a[r]["error_estimate"] = abs(a[r]["value"] - b[c]["value"])
                 used.add(id(b[c]))

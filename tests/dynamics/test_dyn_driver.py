@@ -95,7 +95,8 @@ def test_stats_are_named_and_round_trip(tmp_path):
         # a result compares by value (the generated == would raise on its arrays)
         assert back == res and not back != res
         moved = SimulationResult.load_npz(p)
-        moved.positions[-1, -1, 0] += 1e-15
+        # the next float (an added 1e-15 would round away at a coordinate above 8)
+        moved.positions[-1, -1, 0] = np.nextafter(moved.positions[-1, -1, 0], np.inf)
         assert moved != res
         moved = SimulationResult.load_npz(p)
         moved.energies["kinetic"] = moved.energies["kinetic"][:-1]

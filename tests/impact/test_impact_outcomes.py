@@ -57,10 +57,10 @@ def test_results_compare_by_value(runs):
     assert a == copy.deepcopy(a) and a != runs[2.5]
     assert a != dataclasses.replace(a, final_measure=np.nextafter(a.final_measure, 2.0))
     other = copy.deepcopy(a)
-    other.measure_history[-1] += 1e-15
+    other.measure_history[-1] = np.nextafter(other.measure_history[-1], np.inf)
     assert a != other
     other = copy.deepcopy(a)
-    other.simulation.velocities[0, 0] += 1e-15
+    other.simulation.velocities[0, 0] = np.nextafter(other.simulation.velocities[0, 0], np.inf)
     assert a != other
     # a measure that could not be computed (NaN) equals itself
     nan = dataclasses.replace(a, final_measure=float("nan"))
