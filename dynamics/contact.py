@@ -752,7 +752,7 @@ def _lcp_guess(S, q, nu, na, mu0, eq, hint, shift, tol, ck):
     for k in range(na):
         inA[k] = 1 if (mu0[k] > 0.0 or eq[k] != 0 or hint[k] != 0) else 0
     for _pivot in range(GUESS_PIVOTS):
-        nA = 0
+        nA = np.int64(0)  # (as na in _project_positions)
         for k in range(na):
             if inA[k] != 0:
                 amap[nA] = k
@@ -1377,7 +1377,9 @@ def _project_positions(xo, x, w, edge_len, lam, thickness, max_depth, ck):
     # projection moves the rod by about that); a pair left out that ends violated is
     # added and the projection repeated
     reach = 2.0 * worst + tol_g
-    na = 0
+    # an int64 from the start: from a literal 0, numba's type inference would compile the
+    # callees (_bordered_solve and all it calls, ~10 s cold) once more, for the literal
+    na = np.int64(0)
     for p in range(npairs):
         if ck.mark[p] == 0 and ck.pair_geom[p, 3] < reach:
             na = _activate(ck, eq, p, na, K)
@@ -1595,7 +1597,7 @@ def _project_velocities(x, v, w, edge_len, thickness, dt, pos_factor, keep_rates
     cn = ck.normals[1]
     cu = ck.weights[1]
     eq = ck.flags[1]
-    nc = 0
+    nc = np.int64(0)  # (as na in _project_positions)
     u_prev = 0.0
     carry = False
     last = -1

@@ -9,12 +9,13 @@ from pathlib import Path
 import numba
 import numpy as np
 import pytest
-from dyn_ext_kernels import AnchorSpring, Pull
+from dyn_ext_kernels import AnchorSpring
 
 from dynamics import (
     Damping,
     Gravity,
     Ground,
+    PointLoad,
     RestCriterion,
     Rod,
     SelfContact,
@@ -104,6 +105,14 @@ def test_energy_never_increases_across_contact(method):
     assert E[-1] < E[0] - 100 * (E[:first].max() - E[:first].min())
 
 
+def pull(a, b, c, T):
+    """Nodes ``a`` and ``b`` pulled along +x by ``T``, node ``c`` along -x by ``2 T`` (no
+    net force): three point loads.  With gravity, ground, self-contact and damping first,
+    this is the stepper of ``test_dyn_many_effects.py`` too (compiled once for both)."""
+    return (PointLoad(a, (T, 0.0), name="pull_a"), PointLoad(b, (T, 0.0), name="pull_b"),
+            PointLoad(c, (-2.0 * T, 0.0), name="pull_c"))
+
+
 def _folded(method, t_end=300.0, frames=3):
     # a rod on the ground folded back over itself, its two tails pulled along +x by T and
     # the fold along -x by 2 T (a racquet held open, else the frictionless fold would
@@ -117,7 +126,7 @@ def _folded(method, t_end=300.0, frames=3):
     T = 0.02
     d = 0.05
     dt0 = 0.9 * stable_dt(rod.edge_len, 1.0, 1e-3)
-    eff = (Gravity(1.0), Ground(), SelfContact(d), Damping(0.5), Pull(0, n, apex, T))
+    eff = (Gravity(1.0), Ground(), SelfContact(d), Damping(0.5), *pull(0, n, apex, T))
     res = simulate(rod, eff, method=method, dt=dt0 if method == "rattle" else 4 * dt0,
                    t_end=t_end, frames=frames, rest=RestCriterion(1e-14, 2.0))
     return rod, d, res
@@ -242,7 +251,8 @@ def test_loaded_contacts_end_each_step_without_approaching(method):
     checked = 0
     worst = 0.0
     for _ in range(100):
-        eff = (Gravity(1.0), Ground(), SelfContact(d), Damping(0.5), Pull(0, n - 1, apex, 0.02))
+        eff = (Gravity(1.0), Ground(), SelfContact(d), Damping(0.5),
+               *pull(0, n - 1, apex, 0.02))
         r = simulate(state, eff, method=method, dt=dt, t_end=dt, frames=2)
         assert r.success, r.message
         x, v, f = r.positions[-1], r.velocities, r.contact_forces
