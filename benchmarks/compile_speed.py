@@ -6,6 +6,8 @@ system, from ``os.wait4``) and wall time are read by this process.
 
 1. ``first impact``: ``run_impact`` of ``supp-fig5`` with every cache empty, what a fresh
    install pays (the CLI's ``elastocap impact supp-fig5`` adds only the output).
+   ``first contact impact``: the same for ``fig3-strip`` with ``rod.thickness = 0.02``
+   (self-contact: the contact kernels compile too), to t = 1.
 2. ``cli first impact`` / ``cli second impact``: ``elastocap impact supp-fig5 --json``
    as the quick start runs it (output files and figure included), with every cache
    empty, then again in a second process on the caches the first filled; besides CPU and
@@ -62,6 +64,8 @@ from elastocap.impact import run_impact
 from elastocap.scene import load_scene
 if case == "first-impact":
     run_impact(load_scene("supp-fig5"))
+elif case == "first-contact-impact":
+    run_impact(load_scene("fig3-strip", {"rod.thickness": 0.02, "numerics.t_max": 1.0}))
 elif case == "warm-kernels":
     run_impact(load_scene("supp-fig5", {"numerics.t_max": 1.0}))
     run_impact(load_scene("supp-fig5", {"numerics.t_max": 1.0,
@@ -153,6 +157,8 @@ def one_round(tree, cases):
     with tempfile.TemporaryDirectory() as tmp:
         res["first impact"] = child(tree, "first-impact", os.path.join(tmp, "n0"),
                                     os.path.join(tmp, "s0"))
+        res["first contact impact"] = child(tree, "first-contact-impact",
+                                            os.path.join(tmp, "nk"), os.path.join(tmp, "sk"))
         # the command line, cold then warm (the second process on the caches of the first)
         nd, sd, od = (os.path.join(tmp, k) for k in ("nc", "sc", "oc"))
         res["cli first impact"] = child(tree, "supp-fig5", nd, sd, od)

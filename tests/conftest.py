@@ -23,7 +23,6 @@ LONGEST_FIRST = (
     "tests/dynamics/test_dyn_driver.py",
     "tests/strip/test_strip_trace.py",
     "tests/dynamics/test_dynamics_implicit_stiffness.py",
-    "tests/dynamics/test_dyn_many_effects.py",
     "tests/sweep/test_sweep_real.py",
     "tests/dynamics/test_dynamics_implicit.py",
 )
