@@ -294,14 +294,15 @@ def load_module(prefix: str, source: str, depends: str) -> types.ModuleType:
 
 def is_compiled(module, functions) -> bool:
     """Whether numba's on-disk cache holds compiled code for each of ``functions`` of a
-    generated ``module`` (its data files, named ``<module>.<function>-<line>.py<ver>*.nbc``
-    as numba's caching documentation describes, beside the module or under
-    ``$NUMBA_CACHE_DIR``).  Used to announce a first compilation; a wrong answer costs
-    only the announcement.  Functions this process has compiled or loaded already
-    (a numba dispatcher's ``signatures``) are compiled without a look at the disk."""
+    ``module``, a generated one or one of a package (its data files, named
+    ``<file stem>.<function>-<line>.py<ver>*.nbc`` as numba's caching documentation
+    describes, beside the module or under ``$NUMBA_CACHE_DIR``).  Used to announce a first
+    compilation and estimate its cost; a wrong answer costs only the announcement.
+    Functions this process has compiled or loaded already (a numba dispatcher's
+    ``signatures``) are compiled without a look at the disk."""
     if all(getattr(getattr(module, f, None), "signatures", None) for f in functions):
         return True
-    name = module.__name__
+    name = module.__name__.rpartition(".")[2]
     numba_dir = os.environ.get("NUMBA_CACHE_DIR")
     if numba_dir:
         import glob

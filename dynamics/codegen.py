@@ -12,9 +12,38 @@ from __future__ import annotations
 
 import importlib
 
-from .cache import dependency_digest
+from . import contact
+from .cache import dependency_digest, is_compiled
+from .effects import is_self_contact
 
-__all__ = ["kernel_ref", "stepper_depends"]
+__all__ = ["compile_estimate", "kernel_ref", "stepper_depends"]
+
+#: What a first compile costs beyond the stepper's own code (wall s of ``compile_time``,
+#: fig3-strip and supp-fig5 impacts, 2-core machine at load about 1; "Compile cost" in
+#: docs/guide/time-stepping.md): the package's kernels when numba's cache does not hold
+#: them yet (a fresh install), 11.9-12.7 s for either method; self-contact linked into a
+#: stepper, 6.6-8.5 s; the contact kernels when numba's cache does not hold them, 31-39 s.
+KERNELS_COLD_S = 12.0
+CONTACT_LINK_S = 7.5
+CONTACT_KERNELS_S = 35.0
+
+
+def compile_estimate(base_s, per_effect_s, effects, kernels):
+    """Seconds a first compile of a stepper is announced to take: ``base_s`` plus
+    ``per_effect_s`` per effect other than self-contact, plus :data:`KERNELS_COLD_S` when
+    numba's cache lacks one of ``kernels`` (``(module, function names)`` pairs, the
+    method's own kernels), plus the cost of self-contact when the effects have it
+    (:data:`CONTACT_LINK_S`, and :data:`CONTACT_KERNELS_S` when its kernels are not
+    cached either)."""
+    n = sum(1 for e in effects if not is_self_contact(e))
+    est = base_s + per_effect_s * n
+    if not all(is_compiled(m, fns) for m, fns in kernels):
+        est += KERNELS_COLD_S
+    if n < len(effects):
+        est += CONTACT_LINK_S
+        if not is_compiled(contact, ("_project_positions", "_project_velocities")):
+            est += CONTACT_KERNELS_S
+    return est
 
 
 def kernel_ref(effect):

@@ -88,13 +88,14 @@ quadratic-constraint argument.
 
 from __future__ import annotations
 
+import sys
 from types import SimpleNamespace
 
 import numba
 import numpy as np
 
 from .cache import dependency_digest, is_compiled, load_module
-from .codegen import kernel_ref, render, stepper_depends
+from .codegen import compile_estimate, kernel_ref, render, stepper_depends
 from .contact import check_self_contact, contact_failure, contact_stats, new_contact_work
 from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK, is_ground, is_self_contact
 from .rattle import stable_dt
@@ -1631,9 +1632,11 @@ def compile_stepper(effects=()):
     return module
 
 
-#: Compile time of a new midpoint stepper, the estimate the driver announces before a
-#: first compile: measured (benchmarks/compile_speed.py, CPU, 2 shared cores) 6.8 s bending
-#: only and 14.9 s with fig3-strip's four effects when the package's kernels are cached.
+#: Compile time of a new midpoint stepper when the package's kernels are cached, the base
+#: of the estimate the driver announces before a first compile
+#: (:func:`dynamics.codegen.compile_estimate` adds what is not cached, and self-contact):
+#: measured (benchmarks/compile_speed.py, CPU, 2 shared cores) 6.8 s bending only and
+#: 14.9 s with fig3-strip's four effects; 15.7 s (wall) for supp-fig5's two.
 COMPILE_BASE_S = 10.0
 COMPILE_PER_EFFECT_S = 2.0
 
@@ -1750,7 +1753,8 @@ class Run:
         return is_compiled(self.mod, ("run", "_forces"))
 
     def compile_estimate(self) -> float:
-        return COMPILE_BASE_S + COMPILE_PER_EFFECT_S * len(self.effects)
+        return compile_estimate(COMPILE_BASE_S, COMPILE_PER_EFFECT_S, self.effects,
+                                ((sys.modules[__name__], ("band_lu", "band_forward")),))
 
     def _forces_at_x(self, t):
         F = self.ws[4]

@@ -71,9 +71,10 @@ import math
 
 import numpy as np
 
+from . import constraints
 from .bending import BENDING_WORK_ROWS
 from .cache import is_compiled, load_module
-from .codegen import kernel_ref, render, stepper_depends
+from .codegen import compile_estimate, kernel_ref, render, stepper_depends
 from .constraints import SHAKE_FINAL, new_work
 from .contact import check_self_contact, contact_failure, contact_stats, new_contact_work
 from .effects import KINDS, is_ground, is_self_contact
@@ -538,10 +539,11 @@ def compile_stepper(effects=()):
     return _MODULES[key]
 
 
-#: Compile time of a new RATTLE stepper, the estimate the driver announces before a first
-#: compile: measured (benchmarks/compile_speed.py, CPU, 2 shared cores) 4.6 s bending only
-#: and 5.6 s with four effects when the package's kernels are cached, about 12 s with four
-#: effects when they are compiled too (a fresh install).
+#: Compile time of a new RATTLE stepper when the package's kernels are cached, the base of
+#: the estimate the driver announces before a first compile
+#: (:func:`dynamics.codegen.compile_estimate` adds what is not cached, and self-contact):
+#: measured (benchmarks/compile_speed.py, CPU, 2 shared cores) 4.6 s bending only and
+#: 5.6 s with four effects; 6.7 s (wall) for supp-fig5's two, 8.8 s for fig3-strip's four.
 COMPILE_BASE_S = 5.0
 COMPILE_PER_EFFECT_S = 2.0
 
@@ -605,7 +607,8 @@ class Run:
         return is_compiled(self.mod, ("run_frames",))
 
     def compile_estimate(self) -> float:
-        return COMPILE_BASE_S + COMPILE_PER_EFFECT_S * len(self.effects)
+        return compile_estimate(COMPILE_BASE_S, COMPILE_PER_EFFECT_S, self.effects,
+                                ((constraints, ("shake_flat", "velocity_projection_flat")),))
 
     def _entry(self, mode, step=0, stops=None, record=None, pos=None, ens=None,
                rec_steps=None, nrec=0):

@@ -208,3 +208,46 @@ def test_a_lock_held_past_the_timeout_is_passed_by(tmp_cache):
     with lock_held_by_another_process(mod, 30) as holder:
         with cache.compile_lock(mod, timeout=0.2) as waited:
             assert waited and holder.poll() is None
+
+
+def test_is_compiled_reads_the_numba_cache_files_of_a_package_module(tmp_path, monkeypatch):
+    """numba names a cached function ``<file stem>.<function>-<line>.py<ver>*.nbc``; for a
+    module of a package the stem is the last part of its name (``dynamics.contact`` ->
+    ``contact.``), under ``$NUMBA_CACHE_DIR`` in a folder of numba's choosing."""
+    import types
+
+    mod = types.ModuleType("somepkg.kernels")
+    mod.f = mod.g = object()  # not dispatchers: nothing compiled in this process
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    sub = tmp_path / "some" / "path"
+    sub.mkdir(parents=True)
+    (sub / "kernels.f-12.py311.1.nbc").write_bytes(b"")
+    assert cache.is_compiled(mod, ("f",))
+    assert not cache.is_compiled(mod, ("f", "g"))
+    (sub / "kernels.g-30.py311.1.nbc").write_bytes(b"")
+    assert cache.is_compiled(mod, ("f", "g"))
+    # another module's stem does not count
+    other = types.ModuleType("somepkg.other")
+    other.f = object()
+    assert not cache.is_compiled(other, ("f",))
+
+
+def test_compile_estimate_adds_what_numba_has_not_cached(monkeypatch):
+    """The announced estimate of a first compile: the stepper's base and effects, the
+    package's kernels when numba's cache lacks them, self-contact's link and its kernels
+    when those are not cached either (measured costs in ``dynamics.codegen``)."""
+    from dynamics import Gravity, SelfContact, codegen, contact
+
+    cached = set()
+    monkeypatch.setattr(codegen, "is_compiled", lambda mod, fns: mod in cached)
+    own = ((cache, ("f",)),)  # a stand-in for the method's own kernels
+    g, sc = Gravity(1.0), SelfContact(0.1)
+    est = codegen.compile_estimate
+    assert est(5.0, 2.0, (g,), own) == 5.0 + 2.0 + codegen.KERNELS_COLD_S
+    cached.add(cache)
+    assert est(5.0, 2.0, (g,), own) == 7.0
+    # self-contact is not counted as an effect: its link and its kernels are
+    assert est(5.0, 2.0, (g, sc), own) == (7.0 + codegen.CONTACT_LINK_S
+                                           + codegen.CONTACT_KERNELS_S)
+    cached.add(contact)
+    assert est(5.0, 2.0, (g, sc), own) == 7.0 + codegen.CONTACT_LINK_S
