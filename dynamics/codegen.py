@@ -35,11 +35,11 @@ def compile_estimate(base_s, per_effect_s, effects, kernels):
     method's own kernels), plus the cost of self-contact when the effects have it
     (:data:`CONTACT_LINK_S`, and :data:`CONTACT_KERNELS_S` when its kernels are not
     cached either)."""
-    n = sum(1 for e in effects if not is_self_contact(e))
-    est = base_s + per_effect_s * n
+    contact_effects = [e for e in effects if is_self_contact(e)]
+    est = base_s + per_effect_s * (len(effects) - len(contact_effects))
     if not all(is_compiled(m, fns) for m, fns in kernels):
         est += KERNELS_COLD_S
-    if n < len(effects):
+    if contact_effects:
         est += CONTACT_LINK_S
         if not is_compiled(contact, ("_project_positions", "_project_velocities")):
             est += CONTACT_KERNELS_S

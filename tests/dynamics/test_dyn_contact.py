@@ -281,6 +281,44 @@ def test_without_the_effect_no_contact_code():
         assert mod.HAS_CONTACT is True
 
 
+#: A child with an empty numba cache runs one step of colliding arms with each method and
+#: prints how many signatures each contact kernel compiled.
+_ONE_SIGNATURE_CHILD = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import test_dyn_contact as t
+import dynamics.contact as c
+t._collision("rattle", 0.0)
+t._collision("midpoint", 0.0)
+names = [k for k, v in vars(c).items() if hasattr(v, "signatures") and v.signatures]
+print(json.dumps({k: [str(s) for s in getattr(c, k).signatures] for k in names}))
+"""
+
+
+@pytest.mark.slow
+def test_contact_kernels_compile_once_from_a_cold_cache(tmp_path):
+    """numba compiles a callee for every type its caller infers on the way, a literal
+    ``0`` included: a counter started as ``0`` made ``_bordered_solve`` and all it calls
+    compile twice (about 10 s).  From an empty numba cache (a child process: the numba
+    cache of this one is warm), every contact kernel has one signature, except
+    ``_project_velocities``, which each method calls with its own literal flags."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"),
+               DYNAMICS_CACHE_DIR=str(tmp_path / "steppers"))
+    out = subprocess.run([sys.executable, "-c", _ONE_SIGNATURE_CHILD,
+                          str(Path(__file__).parent)], env=env, capture_output=True,
+                         text=True, check=True)
+    sigs = json.loads(out.stdout.strip().splitlines()[-1])
+    assert "_bordered_solve" in sigs and "_lcp_guess" in sigs
+    twice = {k: v for k, v in sigs.items() if len(v) > 1 and k != "_project_velocities"}
+    assert not twice, twice
+    assert len(sigs["_project_velocities"]) == 2  # rattle's flags and midpoint's
+
+
 def test_bad_self_contact_is_refused_by_name():
     with pytest.raises(ValueError, match="thickness must be > 0"):
         SelfContact(0.0)
