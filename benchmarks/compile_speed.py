@@ -163,6 +163,8 @@ def one_round(tree, cases):
         nd, sd, od = (os.path.join(tmp, k) for k in ("nc", "sc", "oc"))
         res["cli first impact"] = child(tree, "supp-fig5", nd, sd, od)
         res["cli second impact"] = child(tree, "supp-fig5", nd, sd, od)
+        if not cases:
+            return res
         kernels = os.path.join(tmp, "n1")
         child(tree, "warm-kernels", kernels, os.path.join(tmp, "s1"))
         for k, case in enumerate(cases):

@@ -294,25 +294,41 @@ def load_module(prefix: str, source: str, depends: str) -> types.ModuleType:
 
 def is_compiled(module, functions) -> bool:
     """Whether numba's on-disk cache holds compiled code for each of ``functions`` of a
-    ``module``, a generated one or one of a package (its data files, named
-    ``<file stem>.<function>-<line>.py<ver>*.nbc`` as numba's caching documentation
-    describes, beside the module or under ``$NUMBA_CACHE_DIR``).  Used to announce a first
-    compilation and estimate its cost; a wrong answer costs only the announcement.
-    Functions this process has compiled or loaded already (a numba dispatcher's
-    ``signatures``) are compiled without a look at the disk."""
+    ``module``, a generated one or one of a package.  Used to announce a first compilation
+    and estimate its cost; a wrong answer costs only the announcement.  Functions this
+    process has compiled or loaded already (a numba dispatcher's ``signatures``) are
+    compiled without a look at the disk.
+
+    numba names a cached function's data file ``<file stem>.<function>-<line>.py<ver>*.nbc``
+    and looks for it (numba's caching documentation) under ``$NUMBA_CACHE_DIR`` when that is
+    set, else in ``__pycache__`` beside the module when that can be written, else in the
+    user-wide cache ``$XDG_CACHE_HOME/numba`` (default ``~/.cache/numba``), in a folder named
+    after the module's folder (a read-only installation)."""
     if all(getattr(getattr(module, f, None), "signatures", None) for f in functions):
         return True
+    import glob
+
     name = module.__name__.rpartition(".")[2]
     numba_dir = os.environ.get("NUMBA_CACHE_DIR")
     if numba_dir:
-        import glob
-
         found = glob.glob(os.path.join(glob.escape(numba_dir), "**", f"{name}.*.nbc"),
                           recursive=True)
-    else:
-        pyc = os.path.join(os.path.dirname(module.__file__), "__pycache__")
+        return _has(found, name, functions)
+    src = os.path.dirname(os.path.abspath(module.__file__))
+    pyc = os.path.join(src, "__pycache__")
+    if os.access(pyc if os.path.isdir(pyc) else src, os.W_OK):
         found = [f for f in (os.listdir(pyc) if os.path.isdir(pyc) else ())
                  if f.startswith(name + ".") and f.endswith(".nbc")]
+    else:
+        user = os.path.join(os.environ.get("XDG_CACHE_HOME")
+                            or os.path.expanduser(os.path.join("~", ".cache")), "numba")
+        found = glob.glob(os.path.join(glob.escape(user), glob.escape(os.path.basename(src))
+                                       + "_*", f"{name}.*.nbc"))
+    return _has(found, name, functions)
+
+
+def _has(found, name, functions) -> bool:
+    """Whether the numba cache files ``found`` of module stem ``name`` cover ``functions``."""
     have = {os.path.basename(f)[len(name) + 1:].split("-", 1)[0] for f in found}
     return all(f in have for f in functions)
 

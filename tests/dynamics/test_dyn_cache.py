@@ -232,6 +232,29 @@ def test_is_compiled_reads_the_numba_cache_files_of_a_package_module(tmp_path, m
     assert not cache.is_compiled(other, ("f",))
 
 
+def test_is_compiled_reads_numbas_user_wide_cache_for_a_read_only_install(tmp_path,
+                                                                         monkeypatch):
+    """Where ``__pycache__`` beside the module cannot be written (a read-only installation:
+    here a folder that does not exist), numba caches in ``$XDG_CACHE_HOME/numba``, in a
+    folder named after the module's folder and a hash of its path."""
+    import types
+
+    mod = types.ModuleType("somepkg.kernels")
+    mod.__file__ = str(tmp_path / "ro" / "somepkg" / "kernels.py")
+    mod.f = object()
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert not cache.is_compiled(mod, ("f",))
+    other = tmp_path / "xdg" / "numba" / "otherpkg_0123abcd"
+    other.mkdir(parents=True)
+    (other / "kernels.f-12.py311.1.nbc").write_bytes(b"")
+    assert not cache.is_compiled(mod, ("f",))  # another folder's module of that name
+    sub = tmp_path / "xdg" / "numba" / "somepkg_4567ef89"
+    sub.mkdir(parents=True)
+    (sub / "kernels.f-12.py311.1.nbc").write_bytes(b"")
+    assert cache.is_compiled(mod, ("f",))
+
+
 def test_compile_estimate_adds_what_numba_has_not_cached(monkeypatch):
     """The announced estimate of a first compile: the stepper's base and effects, the
     package's kernels when numba's cache lacks them, self-contact's link and its kernels

@@ -56,7 +56,9 @@ def test_damping_decays_rigid_translation_at_exact_rate():
     rod = Rod.straight(30, 3.0, mu=mu)
     rod.v[:, 0] = 1.0
     rod.v[:, 1] = 0.5
-    r = simulate(rod, (Damping(c),), dt=5e-3, t_end=5.0, frames=11)
+    # free: no gravity, the ground far below (the stepper of the ground tests)
+    r = simulate(rod, (Gravity(0.0), Ground(-100.0), Damping(c)), dt=5e-3, t_end=5.0,
+                 frames=11)
     ke = r.energies["kinetic"]
     # exact up to the round-off of 2000 exponential factors
     np.testing.assert_allclose(ke, ke[0] * np.exp(-2 * c * r.times / mu), rtol=1e-11)
@@ -66,7 +68,8 @@ def test_timed_event_switches_gravity_on_at_the_right_time():
     rod = Rod.straight(20, 2.0)
     g = Gravity(0.0)
     t_on = 1.0
-    r = simulate(rod, (g,), dt=1e-3, t_end=2.0, frames=21,
+    # the ground far below and no damping: the stepper of the ground tests
+    r = simulate(rod, (g, Ground(-100.0), Damping(0.0)), dt=1e-3, t_end=2.0, frames=21,
                  events=(Event(t_on, "gravity", "g", 2.0),))
     assert r.events_fired == [(pytest.approx(t_on), "gravity", 0, 2.0)]
     z = r.positions[:, :, 1].mean(axis=1)

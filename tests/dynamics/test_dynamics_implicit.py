@@ -8,9 +8,12 @@ from dyn_helpers import band_to_dense, dense_to_band, rod_from_angles, simulate_
 from dynamics import (
     Clamp,
     Damping,
+    Gravity,
     Ground,
+    PointLoad,
     RestCriterion,
     Rod,
+    SelfContact,
     SimulationResult,
     euler_bernoulli_omega,
     simulate,
@@ -255,7 +258,12 @@ def test_energy_bounded_second_order_no_drift_far_above_bound(wavy_rod):
 def test_damping_is_exact_on_a_rigid_translation():
     rod = Rod.straight(20, 1.0)
     rod.v[:, 0] = 1.0
-    r = simulate_midpoint(rod, (Damping(0.3),), dt=0.05, t_end=2.0, frames=5)
+    # the loaded contact tests' effects with no gravity, the ground far below, no load and
+    # no contact on the straight rod: their compiled stepper
+    eff = (Gravity(0.0), Ground(-100.0), SelfContact(0.01), Damping(0.3),
+           *(PointLoad(k, (0.0, 0.0), name=f"load_{k}") for k in (0, 10, 20)))
+    r = simulate_midpoint(rod, eff, dt=0.05, t_end=2.0, frames=5)
+    assert r.stats["self_contact_steps"] == 0
     assert r.success, r.message
     # uniform rate c / mu: v = exp(-0.3 t), exactly (split exact decay)
     np.testing.assert_allclose(r.velocities[:, 0], np.exp(-0.6), rtol=1e-13)

@@ -6,7 +6,7 @@ selection threshold (slow)."""
 import numpy as np
 import pytest
 
-from dynamics import Gravity, Ground, Rod, constraint_error, simulate, stable_dt
+from dynamics import Damping, Gravity, Ground, Rod, constraint_error, simulate, stable_dt
 from elastocap.capillary import Capillary
 from elastocap.impact import impact_settings, run_impact
 from elastocap.scene import build_scene, load_scene
@@ -42,7 +42,8 @@ def test_long_undamped_capillary_run_has_bounded_energy_error():
     rod = _straight(30, 4.6)
     res = simulate(
         rod,
-        [Capillary(1.5, 0.9, 3.7, 1.0)],
+        # undamped: Damping(0) multiplies by exp(0) = 1 (supp-fig5's stepper)
+        [Capillary(1.5, 0.9, 3.7, 1.0), Damping(0.0)],
         dt=0.5 * stable_dt(rod.edge_len, 1.0, 1.0),
         t_end=1000.0,
         frames=2001,
@@ -62,7 +63,7 @@ def test_rod_resting_on_the_ground_for_a_long_time():
     rod = Rod.straight(60, 14.3, mu=1.0, B=1.0)
     res = simulate(
         rod,
-        (Gravity(1.0), Ground()),
+        (Gravity(1.0), Ground(), Damping(0.0)),  # undamped, the ground tests' stepper
         dt=0.5 * stable_dt(rod.edge_len, 1.0, 1.0),
         t_end=200.0,
         frames=101,
