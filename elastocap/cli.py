@@ -94,6 +94,13 @@ def _stem_value(v: float) -> str:
     return f"{v:.6g}"
 
 
+def _inexact(**values) -> dict:
+    """The values whose :func:`_stem_value` does not read back as the value (their exact
+    ``repr``): for the name's digest, so that values equal to 6 digits name different
+    files."""
+    return {k: repr(float(v)) for k, v in values.items() if float(_stem_value(v)) != v}
+
+
 def _progress(args, label: str):
     """The command's progress reporter on stderr (``--progress``; none without the option)."""
     from elastocap.progress import make_progress
@@ -124,6 +131,15 @@ def _trace(args, scene=None, progress=None, step=(0, 0)):
             return trace_contact_branches(scene, args.param, prange,
                                           progress=lambda line: progress(*step, line))
         return trace_branches(scene, args.param, prange)
+
+
+def _warn_unlocated(bs) -> None:
+    """One warning line on stderr per special point that was bracketed but not located
+    (the report and the JSON list them too, under ``unlocated``)."""
+    for u in getattr(bs, "unlocated", ()):
+        hint = f"; {u['what_to_try']}" if u.get("what_to_try") else ""
+        print(f"elastocap: warning: {u.get('kind', 'point')} near {u['value']:.6g} not "
+              f"located: {u.get('reason', 'no reason recorded')}{hint}", file=sys.stderr)
 
 
 def _fold_report(bs) -> dict:
@@ -159,6 +175,7 @@ def cmd_branches(args) -> int:
         return 1
     if bs.metadata.get("contact_note"):
         print(f"elastocap: warning: {bs.metadata['contact_note']}", file=sys.stderr)
+    _warn_unlocated(bs)
     progress(1, 2, f"{len(bs.branches)} branches traced; writing the files and the figure")
     paths = bs.save(folder)
     paths.append(folder.savefig(lambda path: bs.plot(path), "branches.png"))
@@ -259,6 +276,7 @@ def cmd_folds(args) -> int:
         return 1
     progress(1, 1, f"folds located: {len(bs.folds)}")
     progress.close()
+    _warn_unlocated(bs)
     if expected is not None:
         ok, table = compare_folds(bs.folds, expected, rtol, getattr(bs, "unlocated", ()))
         if args.json:
@@ -314,7 +332,8 @@ def cmd_impact(args) -> int:
         f"impact-{scene.name}-delta{_stem_value(scene.drop.wetted_length)}"
         f"-x{_stem_value(scene.distance_from_end)}"
         + run_suffix(args, scene, named=("drop.wetted_length", "drop.distance_from_end",
-                                         "drop.center", "drop.s1", "drop.s2"))
+                                         "drop.center", "drop.s1", "drop.s2"),
+                     extra=_inexact(delta=scene.drop.wetted_length, x=scene.distance_from_end))
     )
     folder = _out_folder(args, f"impact-{scene.name}", stem)
     from elastocap.progress import heartbeat
@@ -412,6 +431,9 @@ def cmd_overlay(args) -> int:
 
     scene = _load(args)
     deltas = parse_range(args.delta, "--delta")
+    if len({_stem_value(d) for d in deltas}) < len(deltas):
+        raise UsageError(f"--delta: got {args.delta}; its values must differ in their first 6 "
+                         "significant digits (each impact's frames are a file named by Δ)")
     if deltas.max() > scene.rod.length:
         raise UsageError(
             f"--delta: got {args.delta}; expected values <= rod.length = {scene.rod.length}"
@@ -422,7 +444,8 @@ def cmd_overlay(args) -> int:
     check_resources(scene, "statics", args.force)
     stem = (f"overlay-{scene.name}-delta{_stem_value(deltas.min())}-"
             f"{_stem_value(deltas.max())}-{len(deltas)}"
-            + run_suffix(args, scene, named=("drop.wetted_length",)))
+            + run_suffix(args, scene, named=("drop.wetted_length",),
+                         extra=_inexact(**{f"delta{k}": d for k, d in enumerate(deltas)})))
     folder = _out_folder(args, f"overlay-{scene.name}", stem)
     from elastocap.progress import heartbeat
 
@@ -707,7 +730,8 @@ def build_parser() -> argparse.ArgumentParser:
             digest = ("" if names is None else
                       f"{names}; -sDIGEST (7 hex digits) appears when --set/--accuracy"
                       + ("/--param/--range" if name == "branches" else "")
-                      + " change other values than the name's, the same for the same values")
+                      + " change other values than the name's, or the name's values are "
+                      "not exact to 6 digits; the same for the same values")
             p.add_argument(
                 "--out", metavar="DIR",
                 help=f"output directory (default: {default_out}){digest}"

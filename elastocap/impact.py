@@ -336,8 +336,30 @@ def impact_settings(scene: Scene) -> dict:
             f"above the stability bound of bending dt_max = {dt_max:.8g} for {n:.6g} edges "
             f"(h = {h:.4g}); use dt <= {round_down(dt_max):.4g} or 0 for automatic",
         )
-    _check_dt(scene, dt, n)
+    dt_damping = damping_dt_max(scene)
+    if num.dt and num.dt > dt_damping:
+        c, mu = scene.effects.damping, scene.rod.mass_per_length
+        raise SceneError(
+            "numerics.dt", num.dt,
+            f"with effects.damping = {c:g} the damping's decay per step c dt / mu = "
+            f"{c * num.dt / mu:.3g} exceeds {DAMPING_DECAY_MAX:g}: the split exact decay then "
+            "misreads an overdamped creep (the velocity the rest test reads is "
+            "(a/2)/sinh(a/2) of the creep's, a = c dt / mu); use dt <= "
+            f"{round_down(dt_damping):.4g} or 0 for automatic")
+    damping_limited = not num.dt and dt > dt_damping
+    _check_dt(scene, dt, n, dt_damping if damping_limited else None)
+    if damping_limited:
+        dt = dt_damping
     scale = scene.drop.line_tension * delta
+    ratio = rest_damping_ratio(scene)
+    if not num.rest_kinetic * scale / (ratio * ratio) > 0.0:
+        key, value = (("numerics.rest_time", num.rest_time) if num.rest_time > 1.0
+                      else ("effects.damping", scene.effects.damping))
+        raise SceneError(
+            key, value,
+            f"c rest_time / mu = {ratio:.3g} lowers the kinetic rest threshold "
+            "numerics.rest_kinetic / (c rest_time / mu)**2 to 0 (it underflows): no run could "
+            "be read at rest; a smaller effects.damping or numerics.rest_time is needed")
     return {
         "integrator": num.integrator,
         "method": METHOD[num.integrator],
@@ -345,9 +367,30 @@ def impact_settings(scene: Scene) -> dict:
         "dt": dt,
         "dt_max": dt_max,
         "t_max": num.t_max,
-        "rest_kinetic": num.rest_kinetic * scale / rest_damping_ratio(scene) ** 2,
+        # ratio * ratio, not ratio ** 2: inf, not an OverflowError, at a huge ratio
+        "rest_kinetic": num.rest_kinetic * scale / (rest_damping_ratio(scene)
+                                                    * rest_damping_ratio(scene)),
         "rest_time": num.rest_time,
+        "dt_limited_by_damping": damping_limited,
     }
+
+
+#: Largest decay of the velocity per step by the damping, c dt / mu, that an impact run
+#: takes.  The damping is integrated as an exact decay between the force kicks, so a rod
+#: creeping under a steady force f (the overdamped approach to rest) moves at
+#: (a/2) coth(a/2) times its terminal speed f / c, a = c dt / mu, while the velocity the
+#: rest test reads is (a/2) / sinh(a/2) of it (closed forms of the scheme, asserted in
+#: ``tests/dynamics/test_dyn_effects.py``).  At a = 0.3: +0.75 % and -0.37 %.  At a = 86
+#: (supp-fig5 with damping 1e5 at its automatic dt) the velocity read is 2e-17 of the
+#: creep's and the rest test fires while the rod creeps on.  The automatic dt is capped
+#: to it; an explicit numerics.dt above it is refused.
+DAMPING_DECAY_MAX = 0.3
+
+
+def damping_dt_max(scene: Scene) -> float:
+    """The largest dt with ``c dt / mu <= DAMPING_DECAY_MAX`` (inf without damping)."""
+    c = scene.effects.damping
+    return DAMPING_DECAY_MAX * scene.rod.mass_per_length / c if c > 0.0 else math.inf
 
 
 def rest_damping_ratio(scene: Scene) -> float:
@@ -416,11 +459,13 @@ def round_down(x: float, digits: int = 4) -> float:
     return y if float(f"{y:.{digits}g}") <= x else y - q
 
 
-def _check_dt(scene: Scene, dt: float, n: int) -> None:
+def _check_dt(scene: Scene, dt: float, n: int, capped: float | None = None) -> None:
     """Refuse a time step that cannot run the impact, naming the key that set it: the
     explicit ``numerics.dt``; else the key that set the edge count (the automatic dt scales
     as h^2: ``numerics.n_edges``, or ``drop.wetted_length`` when a small Delta raised the
-    count); else the rod (``rod.bending_modulus``) at the preset's edges."""
+    count); else the rod (``rod.bending_modulus``) at the preset's edges.  ``capped``: the
+    automatic dt after the damping's cap (:data:`DAMPING_DECAY_MAX`), which can only lower
+    it: the step count is checked on it and then names ``effects.damping``."""
     num = scene.numerics
     if num.dt:
         key, value, origin = "numerics.dt", num.dt, ""
@@ -431,13 +476,20 @@ def _check_dt(scene: Scene, dt: float, n: int) -> None:
     if not (math.isfinite(dt) and dt > 0.0):
         raise SceneError(key, value, f"gives a time step dt = {dt!r}{origin}; a finite "
                          "dt > 0 is needed: set numerics.dt")
-    if dt > num.rest_time / MIN_REST_STEPS:
+    if dt > num.rest_time / MIN_REST_STEPS and (capped is None
+                                                or capped > num.rest_time / MIN_REST_STEPS):
         raise SceneError(
             key, value,
             f"gives a time step dt = {dt:.4g}{origin}: fewer than {MIN_REST_STEPS} steps in "
             f"numerics.rest_time = {num.rest_time:g}, over which the rest criterion reads "
             f"the kinetic energy; dt <= {round_down(num.rest_time / MIN_REST_STEPS):.4g} is "
             "needed: set numerics.dt")
+    damping_limited = capped is not None
+    if damping_limited:
+        dt = capped
+        key, value = "effects.damping", scene.effects.damping
+        origin = (f" (the automatic dt, capped by the damping at c dt / mu = "
+                  f"{DAMPING_DECAY_MAX:g})")
     steps = num.t_max / dt
     if steps > MAX_IMPACT_STEPS:
         default_t_max = Numerics().t_max
@@ -447,7 +499,8 @@ def _check_dt(scene: Scene, dt: float, n: int) -> None:
             key, value,
             f"gives {steps:.3g} time steps of dt = {dt:.4g}{origin} to numerics.t_max = "
             f"{num.t_max:g}, more than the {MAX_IMPACT_STEPS:.0e} an impact can take; use a "
-            "smaller t_max or a larger dt")
+            + ("smaller t_max or less damping" if damping_limited and key == "effects.damping"
+               else "smaller t_max or a larger dt"))
 
 
 def _wet_interval(scene: Scene) -> tuple[float, float]:

@@ -72,6 +72,11 @@ FOLD_TRANSVERSALITY = 1e-6
 #: A = 1e-9 gives the flat rod to O(A), tests/hard; 1e4 runs cleanly; 1e300 overflows the
 #: cap geometry).
 RESOLVED = {"rod.length": (1e-2, 20.0), "drop.area": (0.0, 1e3)}
+#: Largest drop area over the square of the wetted length: the range over which the drop
+#: model (the circular cap on its chord) is checked against a 60-digit solution
+#: (tests/test_drop.py: |A1|/d^2 up to 1e12); a smaller Delta divides by zero in the
+#: cap's derivatives (from Delta = 1e-100 on supp-fig5).
+DROP_AREA_OVER_DELTA2_MAX = 1e12
 
 
 class StaticsError(RuntimeError):
@@ -104,6 +109,15 @@ def _check_resolved(scene: Scene) -> None:
                 f"the free-rod statics resolves {low}{key} / {unit} <= {hi:g} (l_ec = "
                 f"sqrt(B/gamma) = {lec:.6g}; here the ratio is {ratio:.3g}): rescale the "
                 "scene or change B or gamma")
+    d = scene.drop
+    delta2 = d.wetted_length * d.wetted_length
+    if d.area > DROP_AREA_OVER_DELTA2_MAX * delta2:
+        ratio = d.area / delta2 if delta2 > 0.0 else math.inf
+        raise SceneError(
+            "drop.wetted_length", d.wetted_length,
+            f"the drop model is checked for drop.area / Delta^2 <= "
+            f"{DROP_AREA_OVER_DELTA2_MAX:g} (here {ratio:.3g}): "
+            f"Delta >= {math.sqrt(d.area / DROP_AREA_OVER_DELTA2_MAX):.4g} is needed")
 
 
 def problem_for(
@@ -294,6 +308,13 @@ def _resolve_range(scene: Scene, parameter: str, prange, p_scene: float):
                 f"region: [{lo:.10g}, {hi:.10g}]")
     if not lo < hi:
         raise SceneError("--range", list(prange), "the admissible part of the range is empty")
+    if user:  # the ends must be scenes the statics takes, as --set would check them
+        for end in (lo, hi):
+            try:
+                _check_resolved(scene.with_overrides({parameter: end}))
+            except SceneError as err:
+                raise SceneError("--range", list(prange),
+                                 f"at {parameter} = {end:.10g}: {err}") from None
     return lo, hi, note, names[0], names[1]
 
 

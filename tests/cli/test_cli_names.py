@@ -56,6 +56,32 @@ def test_distinct_impacts_never_overwrite_and_a_rerun_replaces(tmp_path, monkeyp
     assert sorted(p.name for p in (tmp_path / "i").iterdir()) == files
 
 
+def test_values_equal_to_six_digits_name_different_files(tmp_path, monkeypatch, capsys):
+    """The name prints Δ and x to 6 significant digits; a value that does not read back
+    from its 6 digits goes into the digest, exactly."""
+    monkeypatch.chdir(tmp_path)
+
+    def run(*extra):
+        assert main(["impact", "supp-fig5", *FAST, "--out", "i", "--json", *extra]) == 0
+        return json.loads(capsys.readouterr().out)
+
+    runs = [run("--set", "drop.wetted_length=2.5"),
+            run("--set", "drop.wetted_length=2.5000001"),
+            run("--set", "drop.center=2.30000001")]
+    names = [r["files"] for r in runs]
+    assert all(f[0].startswith("i/impact-supp-fig5-delta2.5-x2.3") for f in names)
+    assert len({f for n in names for f in n}) == sum(len(n) for n in names)
+    assert runs[0]["final_measure"] != runs[1]["final_measure"]
+    # the digest of the exact values is FAST's alone
+    assert names[0][0].split("-s")[-1] == run("--set", "numerics.n_edges=0")["files"][0].split(
+        "-s")[-1]
+    assert run("--set", "drop.wetted_length=2.5000001")["files"] == names[1]  # a rerun
+    argv = ["overlay", "supp-fig5", "--delta", "3:3.000001:2", "--out", "o"]
+    assert main(argv) == 2
+    assert "--delta: got 3:3.000001:2; its values must differ" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
 def test_distinct_overlays_never_overwrite(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
 

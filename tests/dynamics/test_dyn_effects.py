@@ -19,6 +19,7 @@ from dynamics import (
     PointLoad,
     RestCriterion,
     Rod,
+    SelfContact,
     simulate,
 )
 
@@ -62,6 +63,32 @@ def test_damping_decays_rigid_translation_at_exact_rate():
     ke = r.energies["kinetic"]
     # exact up to the round-off of 2000 exponential factors
     np.testing.assert_allclose(ke, ke[0] * np.exp(-2 * c * r.times / mu), rtol=1e-11)
+
+
+@pytest.mark.parametrize("method", ["rattle", "midpoint"])
+@pytest.mark.parametrize("a", [0.3, 1.0, 3.0])
+def test_overdamped_creep_follows_the_closed_form_of_the_split_decay(a, method):
+    """A rod falling under gravity g with damping c creeps at the terminal speed g mu / c.
+    The decay exp(-a), a = c dt / mu, between the force kicks makes the discrete creep
+    (a/2) coth(a/2) times that speed, and the velocity held at the step (the one a kinetic
+    rest test reads) (a/2) / sinh(a/2) of it: the closed forms of the steady state of
+    kick-decay-kick.  Why elastocap caps c dt / mu (elastocap.impact.DAMPING_DECAY_MAX)."""
+    rod = Rod.straight(20, 1.0)
+    dt = 1e-3 if method == "rattle" else 1e-2
+    c = a / dt
+    eff = (Gravity(1.0), Ground(-1e9), Damping(c))
+    if method == "midpoint":  # the loaded contact tests' stepper: no contact, no load
+        eff = (*eff[:2], SelfContact(0.01), eff[2],
+               *(PointLoad(k, (0.0, 0.0), name=f"load_{k}") for k in (0, 10, 20)))
+    t1, t2 = 2000 * dt, 3000 * dt  # 600 decay times in: the transient is gone
+    r = simulate(rod, eff, method=method, dt=dt, t_end=t2, frames=np.array([t1, t2]))
+    assert r.success, r.message
+    terminal = -1.0 / c  # g mu / c with g = mu = 1, downwards
+    z = r.positions[:, :, 1].mean(axis=1)
+    creep = (z[1] - z[0]) / (t2 - t1)
+    assert creep / terminal == pytest.approx(0.5 * a / np.tanh(0.5 * a), rel=1e-9)
+    held = r.velocities[:, 1]  # the final state's
+    np.testing.assert_allclose(held / terminal, 0.5 * a / np.sinh(0.5 * a), rtol=1e-9)
 
 
 def test_timed_event_switches_gravity_on_at_the_right_time():

@@ -7,7 +7,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from elastocap.impact import impact_settings, rest_damping_ratio, round_down, run_impact
+from elastocap.impact import (
+    DAMPING_DECAY_MAX,
+    impact_settings,
+    rest_damping_ratio,
+    round_down,
+    run_impact,
+)
 from elastocap.overlay import REACH_DISTANCE, reached_equilibrium
 from elastocap.scene import SceneError, load_scene
 from elastocap.statics.branches import trace_branches
@@ -57,6 +63,42 @@ def test_an_overdamped_rod_that_creeps_is_not_at_rest_and_ends_on_the_statics_st
     # spectral statics; measured: shape 5.0e-4 rad, measure 5.0e-4)
     assert reached["shape_distance"] < 2e-3 < REACH_DISTANCE
     assert long.final_measure == pytest.approx(reached["branch_measure"], abs=2e-3)
+
+
+@settings(max_examples=40)
+@given(damping=st.floats(1e-3, 1e200), mu=st.floats(0.1, 10.0), implicit=st.booleans())
+def test_the_damping_caps_the_automatic_step_or_is_refused_by_name(damping, mu, implicit):
+    """c dt / mu <= DAMPING_DECAY_MAX at the automatic dt (beyond it the velocity the rest
+    test reads is (a/2)/sinh(a/2) of an overdamped creep's: supp-fig5 with damping 1e5 was
+    read at rest at t = 1 while it crept); where the capped dt needs too many steps the
+    refusal names effects.damping; never an OverflowError."""
+    sc = load_scene("supp-fig5", {"effects.damping": damping, "rod.mass_per_length": mu,
+                                  "numerics.integrator": "implicit" if implicit else "rattle"})
+    try:
+        s = impact_settings(sc)
+    except SceneError as err:
+        assert err.key == "effects.damping", err
+        assert "capped by the damping" in str(err) and "less damping" in str(err)
+        return
+    assert damping * s["dt"] / mu <= DAMPING_DECAY_MAX * (1 + 1e-12)
+    free = impact_settings(sc.with_overrides({"effects.damping": 0.0}))
+    assert s["dt_limited_by_damping"] == (s["dt"] < free["dt"])
+    assert s["dt"] == min(free["dt"], DAMPING_DECAY_MAX * mu / damping)
+    assert 0.0 <= s["rest_kinetic"] < float("inf")
+
+
+def test_an_explicit_step_the_damping_cannot_take_is_refused():
+    sc = load_scene("supp-fig5", {"effects.damping": 1000.0, "numerics.dt": 5e-4})
+    with pytest.raises(SceneError, match=r"c dt / mu = 0\.5 exceeds 0\.3.*use dt <= 0\.0003 ")\
+            as err:
+        impact_settings(sc)
+    assert err.value.key == "numerics.dt"
+    ok = load_scene("supp-fig5", {"effects.damping": 1000.0, "numerics.dt": 3e-4})
+    assert impact_settings(ok)["dt"] == 3e-4
+    # a huge rest window: no OverflowError from the rest threshold, a refusal by name
+    with pytest.raises(SceneError, match="underflows") as err:
+        impact_settings(load_scene("supp-fig5", {"numerics.rest_time": 1e300}))
+    assert err.value.key == "numerics.rest_time"
 
 
 def test_gravity_without_a_ground_is_refused():
