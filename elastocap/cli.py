@@ -81,6 +81,9 @@ def cmd_show(args) -> int:
 
 
 def _out_dir(args, default_name: str) -> Path:
+    if args.out is not None and not args.out.strip():
+        raise UsageError(f"--out: got {args.out!r}; expected a folder (omit --out for "
+                         f"out/{default_name})")
     return Path(args.out) if args.out else Path("out") / default_name
 
 
@@ -816,6 +819,19 @@ def command_options(parser: argparse.ArgumentParser | None = None) -> dict[str, 
     return out
 
 
+def _set_note(err, args) -> str:
+    """For a refusal of a key the command line did not set (a check of derived or related
+    values), the ``--set`` values it follows from: `` (with --set rod.length=1e300)``."""
+    given = [o.strip() for o in getattr(args, "overrides", None) or ()]
+    key = getattr(err, "key", None)
+    if not (isinstance(err, SceneError) and given) or key.startswith("-") or any(
+            o.split("=", 1)[0].strip() == key for o in given):
+        return ""
+    shown = [o if len(o) <= 60 else o[:57] + "..." for o in given[:3]]
+    more = f" and {len(given) - 3} more" if len(given) > 3 else ""
+    return f" (with --set {', '.join(shown)}{more})"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit code (0 ok, 1 check failed, 2 bad input, 130
     interrupted)."""
@@ -828,7 +844,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         return int(args.func(args))
     except (UsageError, SceneError, ValueError) as err:
-        print(f"elastocap: error: {err}", file=sys.stderr)
+        print(f"elastocap: error: {err}{_set_note(err, args)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. `head`: not an error of ours
         sys.stderr.close()

@@ -45,6 +45,11 @@ def load_scene_from_args(args) -> Scene:
     """The scene of a command: name or path, --set overrides, --accuracy."""
     over = list(args.overrides)
     if getattr(args, "accuracy", None):
+        for o in over:
+            key, _, value = o.partition("=")
+            if key.strip() == "numerics.accuracy" and value.strip().strip("'\"") != args.accuracy:
+                raise SceneError("--accuracy", args.accuracy,
+                                 f"--set {o.strip()} says otherwise; give one of the two")
         over.append(f"numerics.accuracy={args.accuracy}")
     return load_scene(args.scene, over)
 

@@ -720,6 +720,22 @@ def parse_override(text: str) -> tuple[str, Any]:
     return key, value
 
 
+def _override_dict(texts) -> dict[str, Any]:
+    """``KEY=VALUE`` texts as a dict; a key given twice with different values, or both
+    ways of placing the drop, is refused (which one was meant is not knowable)."""
+    out: dict[str, Any] = {}
+    for text in texts:
+        key, value = parse_override(text)
+        if key in out and out[key] != value:
+            raise SceneError(key, value, f"set twice (also to {out[key]!r}); give it once")
+        out[key] = value
+    if "drop.center" in out and "drop.distance_from_end" in out:
+        raise SceneError("drop.distance_from_end", out["drop.distance_from_end"],
+                         f"drop.center is set too (to {out['drop.center']!r}); give either "
+                         "drop.center or drop.distance_from_end, not both")
+    return out
+
+
 def _short(text: str, n: int = 40) -> str:
     """A long input shortened for an error message (its length said)."""
     return text if len(text) <= n else f"{text[:n]}... ({len(text)} characters)"
@@ -828,6 +844,6 @@ def load_scene(source: str | Path, overrides: dict[str, Any] | list[str] | None 
         name = path.stem
     if overrides:
         if isinstance(overrides, list):
-            overrides = dict(parse_override(o) for o in overrides)
+            overrides = _override_dict(overrides)
         data = _apply_overrides(data, overrides)
     return build_scene(data, name)

@@ -79,6 +79,17 @@ CASES = [
      "drop.area / l_ec^2 <= 1000"),
     (["folds", "supp-fig5", "--param", "drop.line_tension", "--range", "1e-300", "1e300"],
      "--range", "rod.length / l_ec <= 20"),
+    # a refusal of a key the command did not set says which --set it follows from
+    (["impact", "supp-fig5", "--set", "rod.length=1e300"], "drop.wetted_length",
+     "(with --set rod.length=1e300)"),
+    # conflicting inputs: which one was meant is not knowable
+    (["show", "supp-fig5", "--set", "drop.center=2", "--set", "drop.distance_from_end=2"],
+     "drop.distance_from_end", "give either drop.center or drop.distance_from_end"),
+    (["show", "supp-fig5", "--set", "drop.area=1", "--set", "drop.area=2"], "drop.area",
+     "set twice (also to 1)"),
+    (["impact", "supp-fig5", "--accuracy", "draft", "--set", "numerics.accuracy=publication"],
+     "--accuracy", "--set numerics.accuracy=publication says otherwise"),
+    (["impact", "supp-fig5", "--out", ""], "--out", "expected a folder"),
     # strong damping: the capped dt needs too many steps (named), never an OverflowError
     (["impact", "supp-fig5", "--set", "effects.damping=1e160"], "effects.damping",
      "capped by the damping"),

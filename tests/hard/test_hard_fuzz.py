@@ -252,6 +252,8 @@ def _expected_refusal(cmd, over, rng):
         elif cmd == "overlay":
             scene = load_scene("supp-fig5", over)
             deltas = parse_range(_range_text(*rng), "--delta")
+            if len({f"{d:.6g}" for d in deltas}) < len(deltas):  # frames named by Delta
+                return "--delta"
             if deltas.max() > scene.rod.length:
                 return "--delta"
             for d in (deltas.min(), deltas.max()):
