@@ -402,7 +402,17 @@ def _start_tangent(ev, u, p):
     # dF/du singular: the null vector of the n x (n+1) matrix [J, F_p] by SVD.
     Jd = J.toarray() if hasattr(J, "toarray") else np.asarray(J)
     Ext = np.hstack([Jd, Fp.reshape(n, 1)])
-    _, sv, Vt = np.linalg.svd(Ext)
+    bad = int(np.count_nonzero(~np.isfinite(Ext)))
+    if bad:
+        return None, (
+            f"the start has {bad} non-finite entries in [dF/du, dF/dp] (NaN or inf): the "
+            "problem is not differentiable there. Check u0 and p0 against the problem's "
+            "domain.")
+    try:
+        _, sv, Vt = np.linalg.svd(Ext)
+    except np.linalg.LinAlgError as err:
+        return None, (f"the start's tangent could not be computed: the SVD of "
+                      f"[dF/du, dF/dp] failed ({err}). Try a slightly different p0.")
     smax = sv[0] if sv.size else 0.0
     # A rank deficiency of [J, F_p] (second-smallest singular value of the
     # square completion below 1e-8 of the largest) means a branch point or a

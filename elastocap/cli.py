@@ -844,6 +844,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         return int(args.func(args))
     except (UsageError, SceneError, ValueError) as err:
+        if type(err).__name__ == "LinAlgError":  # numpy's: a numerical failure, not input
+            print(f"elastocap: error: numerical failure in a linear solve of "
+                  f"`{getattr(args, 'command', '?')}`: {err}. Try another resolution "
+                  "(numerics.*) or a narrower --range/--delta; if it persists, report the "
+                  "command.", file=sys.stderr)
+            return 1
         print(f"elastocap: error: {err}{_set_note(err, args)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. `head`: not an error of ours

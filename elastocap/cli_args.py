@@ -197,9 +197,11 @@ def statics_estimate(scene: Scene) -> dict:
     """
     num = scene.numerics
     if scene.effects.ground:
-        from elastocap.impact import edge_count
+        from elastocap.impact import edge_count, edge_key
 
-        n, key, val = edge_count(scene), "numerics.n_edges", num.n_edges
+        # a float: a tiny Delta asks for more edges than an int converts to a float
+        n = float(edge_count(scene))
+        key, val = edge_key(scene) or ("numerics.n_edges", num.n_edges)
     else:
         from elastocap.statics.branches import ACCURACY_N, check_statics_scene
 
@@ -208,10 +210,11 @@ def statics_estimate(scene: Scene) -> dict:
         n = num.cheb_points or ACCURACY_N[num.accuracy]
         key, val = "numerics.cheb_points", num.cheb_points
     # a few dense (n+2)^2 matrices, and up to ~10 branches of max_steps states and tangents
-    memory = 8.0 * (8.0 * (n + 2) ** 2 + 10.0 * 2.0 * num.max_steps * (n + 2))
+    # (n + 2) * (n + 2), not ** 2: inf, not an OverflowError, at an absurd n
+    memory = 8.0 * (8.0 * (n + 2) * (n + 2) + 10.0 * 2.0 * num.max_steps * (n + 2))
     refusal = None
     if memory > MEMORY_LIMIT:
-        if 8.0 * 8.0 * (n + 2) ** 2 <= MEMORY_LIMIT / 2:
+        if 8.0 * 8.0 * (n + 2) * (n + 2) <= MEMORY_LIMIT / 2:
             key, val = "numerics.max_steps", num.max_steps
         refusal = (
             key,

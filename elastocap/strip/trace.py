@@ -1229,6 +1229,13 @@ def check_trace_request(scene: Scene, parameter: str, prange):
     if hi >= 2.0 * x:
         raise SceneError("--range", [lo, hi],
                          f"expected HI < 2 x = {2.0 * x} (the drop off the free end)")
+    from elastocap.statics.branches import DROP_AREA_OVER_DELTA2_MAX
+
+    lo_min = math.sqrt(scene.drop.area / DROP_AREA_OVER_DELTA2_MAX)
+    if lo < lo_min:
+        raise SceneError("--range", [lo, hi],
+                         f"expected LO >= {lo_min:.4g}: the drop model is checked for "
+                         f"drop.area / Delta^2 <= {DROP_AREA_OVER_DELTA2_MAX:g}")
     return lo, hi
 
 

@@ -79,6 +79,11 @@ CASES = [
      "drop.area / l_ec^2 <= 1000"),
     (["folds", "supp-fig5", "--param", "drop.line_tension", "--range", "1e-300", "1e300"],
      "--range", "rod.length / l_ec <= 20"),
+    # the strip's statics: Delta below the drop model's range, an absurd edge count
+    (["folds", "fig3-strip", "--accuracy", "draft", "--range", "1e-9", "1e-8"], "--range",
+     "expected LO >= 6e-07: the drop model is checked for drop.area / Delta^2 <= 1e+12"),
+    (["folds", "fig3-strip", "--set", "drop.wetted_length=1e-300"], "drop.wetted_length",
+     "the statics would need about inf GB"),
     # a refusal of a key the command did not set says which --set it follows from
     (["impact", "supp-fig5", "--set", "rod.length=1e300"], "drop.wetted_length",
      "(with --set rod.length=1e300)"),
@@ -301,3 +306,17 @@ def test_a_fold_between_other_stability_indices_does_not_match():
             assert_folds(found, found, rtol=bad)
     with pytest.raises(FoldMismatch):
         assert_folds(found, [{"value": 3.47}])
+
+
+def test_a_linear_algebra_failure_is_a_numerical_failure_not_bad_input(monkeypatch, capsys):
+    """numpy's LinAlgError is a ValueError, but not the user's: exit 1 with what to try."""
+    import elastocap.cli as cli
+
+    def fail(args):
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+    monkeypatch.setattr(cli, "_load", fail)  # what `show` calls first
+    assert main(["show", "supp-fig5"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("elastocap: error: numerical failure in a linear solve of `show`: "
+                          "SVD did not converge. Try another resolution")

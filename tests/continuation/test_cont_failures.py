@@ -17,6 +17,16 @@ def test_singular_start_is_a_status_not_an_exception():
     assert "singular" in br.message and "switch_branch" in br.message
 
 
+def test_a_non_finite_derivative_at_the_start_is_a_status_not_an_exception():
+    # F converges at p0, but dF/dp is NaN there (a model at the edge of its domain): the
+    # tangent is diagnosed, not an SVD that fails to converge
+    prob = C.FunctionProblem(lambda u, p: u - p, jacobian=lambda u, p: np.eye(2),
+                             dfdp=lambda u, p: np.full(2, np.nan), name="nan-dfdp")
+    br = C.continue_branch(prob, [0.0, 0.0], 0.0, S.replace(check_jacobian=False))
+    assert br.status == C.START_FAILED and not br.success
+    assert "2 non-finite entries in [dF/du, dF/dp]" in br.message
+
+
 def test_newton_failure_at_start_says_what_to_try():
     # Bratu has no solution for lam > 3.5138: Newton at lam = 5 cannot converge.
     br = C.continue_branch(Bratu(16), np.zeros(15), 5.0, S.replace(check_jacobian=False))
