@@ -7,6 +7,7 @@ import json
 import math
 import os
 import secrets
+import zipfile
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -271,7 +272,16 @@ class Branch:
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_suffix(".npz")
-        with np.load(path, allow_pickle=False) as z:
+        try:
+            return cls._load(path)
+        except (EOFError, OSError, zipfile.BadZipFile, KeyError, json.JSONDecodeError) as err:
+            raise ValueError(f"Branch.load({str(path)!r}): not a readable branch file "
+                             f"({type(err).__name__}: {err})") from None
+
+    @classmethod
+    def _load(cls, path: Path) -> Branch:
+        # the file opened here: numpy leaves it open when it cannot read it
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as z:
             files = set(z.files)
             required = {"p", "ds", "newton_iterations", "stability", "metadata_json"}
             missing = sorted(required - files)
@@ -298,6 +308,9 @@ class Branch:
                     u=z[f"sp{i}:u"] if f"sp{i}:u" in files else None,
                     precision=math.nan if d["precision"] is None else d["precision"],
                     located=d["located"], name=d["name"], data=data))
+            if not np.all(np.isfinite(z["p"])):
+                raise ValueError(f"Branch.load({str(path)!r}): the parameter values p hold "
+                                 "NaN or inf; Branch.save never writes them")
             return cls(
                 p=z["p"], u=z["u"] if "u" in files else None,
                 tangent=z["tangent"] if "tangent" in files else None,

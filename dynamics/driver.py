@@ -42,6 +42,7 @@ import math
 import os
 import secrets
 import time
+import zipfile
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -255,13 +256,13 @@ class SimulationResult:
     @staticmethod
     def load_npz_context(path) -> dict | None:
         """The ``context`` dict a file was saved with (None if it has none)."""
-        with np.load(path, allow_pickle=False) as f:
+        with _readable(path), open(path, "rb") as fh, np.load(fh, allow_pickle=False) as f:
             return json.loads(str(f["context"])) if "context" in f.files else None
 
     @classmethod
     def load_npz(cls, path) -> SimulationResult:
         """Load a file written by :meth:`save_npz`; refuses incomplete files by name."""
-        with np.load(path, allow_pickle=False) as f:
+        with _readable(path), open(path, "rb") as fh, np.load(fh, allow_pickle=False) as f:
             missing = [k for k in ("meta", "times", "positions", "velocities")
                        if k not in f.files]
             if missing:
@@ -274,10 +275,29 @@ class SimulationResult:
                               "stats", "events_fired") if k not in meta]
         if absent:
             raise ValueError(f"{path}: metadata lacks {absent}")
+        if not (times.ndim == 1 and pos.ndim == 3 and pos.shape[0] == times.size
+                and pos.shape[2] == 2 and vel.shape == pos.shape[1:]):
+            raise ValueError(f"{path}: inconsistent arrays: times {times.shape}, positions "
+                             f"{pos.shape}, velocities {vel.shape} (expected (F,), (F, n, 2) "
+                             "and (n, 2))")
+        if meta.get("n_frames") not in (None, times.size):
+            raise ValueError(f"{path}: {times.size} frames where the metadata says "
+                             f"{meta['n_frames']}")
         meta.pop("n_frames", None)
         meta["events_fired"] = [tuple(e) for e in meta["events_fired"]]
         return cls(times=times, positions=pos, velocities=vel, energies=energies,
                    contact_forces=cf, **meta)
+
+
+@contextlib.contextmanager
+def _readable(path):
+    """A file numpy cannot read (truncated, not a zip, a damaged member) as a ValueError
+    naming it."""
+    try:
+        yield
+    except (EOFError, zipfile.BadZipFile, json.JSONDecodeError) as err:
+        raise ValueError(f"{path}: not a readable .npz file ({type(err).__name__}: "
+                         f"{err})") from None
 
 
 def _same_value(a, b) -> bool:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -145,6 +146,13 @@ def _warn_unlocated(bs) -> None:
               f"located: {u.get('reason', 'no reason recorded')}{hint}", file=sys.stderr)
 
 
+def _warn_undecided(delta, outcome, reason) -> None:
+    """The warning line of an undecided impact among several (``impact`` says it alone)."""
+    if outcome == "undecided":
+        print(f"elastocap: warning: impact at Δ = {delta:g}: outcome undecided: {reason}",
+              file=sys.stderr)
+
+
 def _fold_report(bs) -> dict:
     """The special points of a branch set (its summary without the per-branch lines)."""
     return {k: v for k, v in bs.summary().items() if k != "branches"}
@@ -279,6 +287,8 @@ def cmd_folds(args) -> int:
         return 1
     progress(1, 1, f"folds located: {len(bs.folds)}")
     progress.close()
+    if bs.metadata.get("contact_note"):
+        print(f"elastocap: warning: {bs.metadata['contact_note']}", file=sys.stderr)
     _warn_unlocated(bs)
     if expected is not None:
         ok, table = compare_folds(bs.folds, expected, rtol, getattr(bs, "unlocated", ()))
@@ -458,6 +468,8 @@ def cmd_overlay(args) -> int:
         res = run_overlay(scene, deltas, None)
     progress(1, 1, "done")
     progress.close()
+    for r in res["runs"]:
+        _warn_undecided(r["wetted_length"], r["outcome"], r["undecided_reason"])
     from elastocap.overlay import plot_overlay
 
     res["files"] = [
@@ -520,10 +532,12 @@ def cmd_demo(args) -> int:
                 _CompilesAnnounced():
             r = run_impact(sc)
         reached = reached_equilibrium(bs, d, r)
+        _warn_undecided(d, r.outcome, r.undecided_reason)
         runs.append(
             {
                 "wetted_length": d,
                 "outcome": r.outcome,
+                "undecided_reason": r.undecided_reason,
                 "final_measure": r.final_measure,
                 **reached,
                 "t_end": r.t_end,
@@ -571,9 +585,34 @@ def _load_impact(npz: Path):
         raise UsageError(f"PATH: got {str(npz)!r}; not an impact file written by elastocap "
                          "impact (no scene recorded)")
     scene = build_scene(ctx["scene"], ctx.get("scene_name", npz.stem))
+    bad = _impact_file_problem(ctx, sim)
+    if bad:
+        raise UsageError(f"PATH: got {str(npz)!r}; not an impact file as elastocap impact "
+                         f"writes it: {bad}")
     fields = {k: ctx[k] for k in ImpactResult.__dataclass_fields__ if k in ctx}
     res = ImpactResult(**fields, simulation=sim, measure_history=turning_measures(sim.positions))
     return res, scene
+
+
+def _impact_file_problem(ctx: dict, sim) -> str:
+    """What makes a loaded impact file inconsistent ("" when nothing): an outcome the run
+    cannot have, a node count other than its settings', non-finite frames."""
+    from elastocap.criteria import OUTCOMES
+
+    if ctx.get("outcome") not in OUTCOMES:
+        return f"outcome {ctx.get('outcome')!r} (expected one of {', '.join(OUTCOMES)})"
+    n = (ctx.get("settings") or {}).get("n_edges")
+    if isinstance(n, int) and sim.positions.shape[1] != n + 1:
+        return (f"positions of {sim.positions.shape[1]} nodes where its settings say "
+                f"{n} edges")
+    import numpy as np
+
+    if not np.all(np.isfinite(sim.positions)):
+        return "non-finite positions"
+    fm = ctx.get("final_measure")
+    if ctx["outcome"] != "failed" and not (isinstance(fm, (int, float)) and math.isfinite(fm)):
+        return f"final_measure {fm!r} (expected a finite number)"
+    return ""
 
 
 def cmd_plot(args) -> int:
@@ -600,7 +639,7 @@ def cmd_plot(args) -> int:
             f"PATH: got {str(path)!r}; expected a branches folder (with branches.json), an "
             "impact .npz, a sweep folder (with sweep.json) or a sweep store (.sqlite)"
         )
-    folder = OutputFolder(args.out or src.parent, f"plot-{kind}-{src.stem}")
+    # read and check the input before anything is written
     if kind == "branches":
         from elastocap.branchset import BranchSet
 
@@ -608,35 +647,42 @@ def cmd_plot(args) -> int:
             bs = BranchSet.load(src)
         except ValueError as err:
             raise UsageError(f"PATH: {err}") from None
-        png = folder.savefig(lambda p: bs.plot(p), "branches.png")
+        draw, name = bs.plot, "branches.png"
         info = {"kind": kind, "scene": bs.scene.name, "branches": len(bs.branches)}
     elif kind == "impact":
         from elastocap.frames import frame_strip
 
         res, scene = _load_impact(src)
-        png = folder.savefig(lambda p: frame_strip(res, scene, p, k=args.frames or 8),
-                             f"{src.stem}-frames.png")
+        def draw(p):
+            return frame_strip(res, scene, p, k=args.frames or 8)
+
+        name = f"{src.stem}-frames.png"
         info = {"kind": kind, "scene": scene.name, "outcome": res.outcome}
-    elif kind == "store":
-        from elastocap.sweep.engine import report_from_store
-        from elastocap.sweep.plot import plot_phase_diagram
+    else:
+        from elastocap.sweep.plot import check_report, plot_phase_diagram
         from elastocap.sweep.store import StoreError
 
-        try:
-            report = report_from_store(src)
-        except StoreError as err:
-            raise UsageError(f"PATH: {err}") from None
-        png = folder.savefig(lambda p: plot_phase_diagram(report, p), "phase-diagram.png")
-        info = {"kind": "sweep", "scene": report.get("scene")}
-    else:
-        from elastocap.sweep.plot import plot_phase_diagram
+        if kind == "store":
+            from elastocap.sweep.engine import report_from_store
 
-        try:
-            report = json.loads(src.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as err:
-            raise UsageError(f"PATH: got {str(src)!r}; not a readable sweep.json ({err})") from None
-        png = folder.savefig(lambda p: plot_phase_diagram(report, p), "phase-diagram.png")
-        info = {"kind": kind, "scene": report.get("scene")}
+            try:
+                report = report_from_store(src)
+            except StoreError as err:
+                raise UsageError(f"PATH: {err}") from None
+        else:
+            try:
+                report = json.loads(src.read_text(encoding="utf-8"))
+            except (OSError, ValueError) as err:
+                raise UsageError(f"PATH: got {str(src)!r}; not a readable sweep.json "
+                                 f"({err})") from None
+            check_report(report, str(src))
+        def draw(p):
+            return plot_phase_diagram(report, p)
+
+        name = "phase-diagram.png"
+        info = {"kind": "sweep", "scene": report.get("scene")}
+    folder = OutputFolder(args.out or src.parent, f"plot-{kind}-{src.stem}")
+    png = folder.savefig(draw, name)
     if args.json:
         _print_json({**info, "files": [str(png)]})
     else:

@@ -71,7 +71,8 @@ SUFFIX_DIGITS = 7
 def run_suffix(args, scene: Scene, named=(), extra=None) -> str:
     """The part of an output name that tells apart runs of one scene which differ in values
     the name does not already carry: ``""`` when the scene's validated values equal the
-    named scene's (``args.scene`` without ``--set``/``--accuracy``) outside the ``named``
+    named scene's (``args.scene`` without ``--set``/``--accuracy``; for a scene file, the
+    built-in scene of its name, else none) outside the ``named``
     keys and ``extra`` is empty; else ``"-s"`` + the first SUFFIX_DIGITS hex digits of the
     SHA-256 of the differing values (``canonical`` scene values, so ``0.1``, ``0.10`` and
     ``1e-1`` name the same run) and of ``extra`` (other options that change the result,
@@ -80,7 +81,16 @@ def run_suffix(args, scene: Scene, named=(), extra=None) -> str:
     import hashlib
     import json
 
-    base = _flat(load_scene(args.scene).canonical())
+    from elastocap.scene import builtin_scene_names
+
+    # a scene file is held against the built-in scene of its name (its values may differ
+    # under the same name), or against no scene at all: every value goes into the digest
+    if args.scene in builtin_scene_names():
+        base = _flat(load_scene(args.scene).canonical())
+    elif scene.name in builtin_scene_names():
+        base = _flat(load_scene(scene.name).canonical())
+    else:
+        base = {}
     mine = _flat(scene.canonical())
     diff = {k: mine.get(k) for k in sorted(set(base) | set(mine))
             if k not in named and base.get(k) != mine.get(k)}

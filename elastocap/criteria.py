@@ -25,6 +25,7 @@ import numpy as np
 from elastocap.geometry import arclength, turning_from
 
 __all__ = [
+    "OUTCOMES",
     "CriterionResult",
     "ImpactVerdict",
     "UNDECIDED",
@@ -42,6 +43,8 @@ ENCAPSULATED = "encapsulated"
 OPEN = "open"
 UNDECIDED = "undecided"
 FAILED = "failed"
+#: Every outcome an impact can have.
+OUTCOMES = (OPEN, ENCAPSULATED, UNDECIDED, FAILED)
 
 
 @dataclass(frozen=True)

@@ -296,6 +296,9 @@ def impact_settings(scene: Scene) -> dict:
     num = scene.numerics
     L = scene.rod.length
     delta = scene.drop.wetted_length
+    for ev in scene.drop.events:
+        if ev.time > num.t_max:
+            raise SceneError("drop.events", ev.time, f"event after numerics.t_max = {num.t_max}")
     if scene.effects.gravity > 0.0 and not scene.effects.ground:
         raise SceneError(
             "effects.gravity", scene.effects.gravity,
@@ -1003,9 +1006,6 @@ def run_impact(scene: Scene, frames: int | None = None, **options) -> ImpactResu
     """
     t0 = time.perf_counter()
     st = impact_settings(scene)
-    for ev in scene.drop.events:
-        if ev.time > st["t_max"]:
-            raise SceneError("drop.events", ev.time, f"event after numerics.t_max = {st['t_max']}")
     res, verdict = _impact_once(scene, dict(st), frames, options, t0)
     repeats = []
     while verdict.swing_half_period is not None and len(repeats) < SWING_REPEATS:

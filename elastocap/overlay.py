@@ -148,6 +148,7 @@ def run_overlay(scene: Scene, deltas, out_dir=None, bs: BranchSet | None = None)
                 "t_end": res.t_end,
                 "status": res.status,
                 "decided_after_crossing": res.decided_after_crossing,
+                "undecided_reason": res.undecided_reason,
             }
         )
         results.append(res)

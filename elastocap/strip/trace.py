@@ -61,7 +61,8 @@ Self-contact (a strip with ``thickness`` d > 0, :mod:`elastocap.strip.model`)
     restarts with the new pair set (:func:`_restart_pair`). A touch-down or lift-off may
     turn Delta back: a contact fold, as at the ground. Off (d = 0) none of this runs and
     the branches are the same bit for bit. The branch search
-    (:func:`trace_contact_branches`) runs without self-contact and refuses a thickness.
+    (:func:`trace_contact_branches`) runs without self-contact: its strip has thickness 0
+    whatever the scene's, and ``metadata["contact_note"]`` says so.
 BLAS threads
     The trace makes thousands of small dense LAPACK calls ((n + |A|)^2 with n ~ 150-300).
     With two OpenBLAS threads on a shared 2-core machine they ran 10-17x slower than with
@@ -1203,6 +1204,23 @@ NOT_HANDLED = (
 )
 
 
+def _searched_strip(scene: Scene, n) -> DiscreteStrip:
+    """The discrete strip of the branch search: the scene's, without self-contact."""
+    strip = discrete_strip_for(scene, n)
+    return strip.with_(thickness=0.0) if strip.thickness else strip
+
+
+def contact_note(scene: Scene) -> str:
+    """What the branch search leaves out of a scene with a thickness ("" without one)."""
+    d = scene.rod.thickness
+    if not d:
+        return ""
+    return (f"rod.thickness = {d:g} is left out of the strip's branch search (run at 0: "
+            "states whose strip crosses itself are marked inadmissible); a branch with "
+            "self-contact: elastocap.strip.trace.trace_discrete_branch from a state of "
+            "elastocap.strip.solve.wrapped_state (docs/guide/strip.md)")
+
+
 # --------------------------------------------------------------------------- checks
 def check_trace_request(scene: Scene, parameter: str, prange):
     """Raise the :class:`SceneError` that :func:`trace_contact_branches` would raise for this
@@ -1214,12 +1232,6 @@ def check_trace_request(scene: Scene, parameter: str, prange):
     if parameter != "drop.wetted_length":
         raise SceneError("--param", parameter, "the contact-handling strip solver traces "
                          "drop.wetted_length only")
-    if scene.rod.thickness:
-        raise SceneError("rod.thickness", scene.rod.thickness,
-                         "the branch search of the strip runs without self-contact (0); "
-                         "one branch with self-contact is traced by "
-                         "elastocap.strip.trace.trace_discrete_branch from a state of "
-                         "elastocap.strip.solve.wrapped_state")
     x = scene.distance_from_end
     if prange is None:
         prange = (0.3, min(2.2, 1.95 * x))
@@ -2333,7 +2345,8 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
     """
     lo, hi = check_trace_request(scene, parameter, prange)
     t0 = time.perf_counter()
-    strip = discrete_strip_for(scene, n)
+    note = contact_note(scene)
+    strip = _searched_strip(scene, n)
     n_fine = None
     with threadpool_limits(limits=1, user_api="blas"):
         a = _analyse(strip, lo, hi, progress, spreading=spreading)
@@ -2386,6 +2399,7 @@ def trace_contact_branches(scene: Scene, parameter: str = "drop.wetted_length", 
         "search": a["search"].to_dict(),
         "continuation": dict(DEFAULTS),
         "contact_event_residual": _event_residuals(a["events"]),
+        "contact_note": note,
         "version": __version__,
         "wall_time_s": time.perf_counter() - t0,
     }
@@ -2455,7 +2469,7 @@ def solved_crossings(strip: DiscreteStrip, branches):
 
 # --------------------------------------------------------------------------- the model
 def _rebuild_problem(scene: Scene, meta: dict) -> ContactProblem:
-    return ContactProblem(discrete_strip_for(scene, int(meta["n_edges"])))
+    return ContactProblem(_searched_strip(scene, int(meta["n_edges"])))
 
 
 def _plot(bs, path=None):

@@ -237,6 +237,13 @@ def check_sweep_resources(scene: Scene, points, resolutions, force: bool = False
     from elastocap.cli_args import impact_estimate
     from elastocap.scene import SceneError
 
+    for p in points:  # every grid point is a scene: refused here, not run as failures
+        try:
+            scene.with_overrides(p.overrides())
+        except SceneError as err:
+            raise SceneError(err.key, err.value,
+                             f"{err.allowed} (at the sweep's point x = {p.x_over_leg:g}, Delta "
+                             f"= {p.wetted_length:.6g})") from None
     narrowest = min(points, key=lambda p: p.wetted_length)
     widest = max(points, key=lambda p: p.wetted_length)
     worst = None
@@ -1101,10 +1108,14 @@ def report_from_store(store) -> dict:
     frame-independent criterion."""
     from elastocap.sweep.refine import classify_line
 
-    with _opened(store) as st:
+    st = store if isinstance(store, ResultStore) else ResultStore.reader(store)
+    try:
         rows = st.rows()
         failures = st.failures()
         resolution = st.resolution()
+    finally:
+        if st is not store:
+            st.close()
     if not rows:
         raise ValueError(f"PATH: got {str(store)!r}; the store holds no run to draw")
     version = rows[-1]["version"]

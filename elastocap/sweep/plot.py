@@ -18,6 +18,7 @@ squares. The title records the scene, every ``--set`` override and the resolutio
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 __all__ = ["load_experiments", "plot_phase_diagram", "settings_line"]
@@ -31,6 +32,35 @@ _OUTCOME_WORDS = {
     "open": "open",
     "0": "open",
 }
+
+
+def check_report(report, origin: str) -> None:
+    """Refuse (ValueError naming ``origin``, the run and the field) a sweep report that
+    :func:`plot_phase_diagram` cannot draw faithfully: not a dict with a list of runs, a
+    run without a finite x, a non-finite We^1/2 or Delta, an outcome no run can have."""
+    from elastocap.criteria import OUTCOMES
+
+    runs = report.get("runs") if isinstance(report, dict) else None
+    if not isinstance(runs, list):
+        raise ValueError(f"PATH: {origin}: not a sweep report (no list of runs under 'runs')")
+
+    def finite(v):
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    for k, r in enumerate(runs):
+        where = f"PATH: {origin}: runs[{k}]"
+        if not isinstance(r, dict):
+            raise ValueError(f"{where}: not a run (a JSON object expected)")
+        if not finite(r.get("x")):
+            raise ValueError(f"{where}: x = {r.get('x')!r}; expected a finite number")
+        for key in ("we_sqrt", "wetted_length"):
+            if r.get(key) is not None and not finite(r[key]):
+                raise ValueError(f"{where}: {key} = {r[key]!r}; expected a finite number")
+        if r.get("we_sqrt") is None and r.get("wetted_length") is None:
+            raise ValueError(f"{where}: neither we_sqrt nor wetted_length")
+        if r.get("outcome") not in OUTCOMES:
+            raise ValueError(f"{where}: outcome = {r.get('outcome')!r}; expected one of "
+                             f"{', '.join(OUTCOMES)}")
 
 
 def load_experiments(path: str | Path) -> list[dict]:

@@ -223,6 +223,30 @@ class ResultStore:
                 f"{self.path}: not a usable sweep store ({err}); give another --store file"
             ) from None
 
+    @classmethod
+    def reader(cls, path: str | Path) -> ResultStore:
+        """An existing store opened read-only, for reports and plots: nothing is written and
+        no file is created (an SQLite file that is not a store stays untouched).  Only the
+        reading methods (:meth:`rows`, :meth:`failures`, :meth:`resolution`, ...) work."""
+        path = Path(path)
+        if not path.is_file():
+            raise StoreError(f"store {str(path)!r}: no such file")
+        cls.check(path)
+        try:
+            con = cls._open_readonly(path)
+            tables = {r[0] for r in con.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+        except sqlite3.DatabaseError as err:
+            raise StoreError(f"store {str(path)!r}: not a usable sweep store ({err})") from None
+        if not {"runs", "meta", "failures"} <= tables:
+            con.close()
+            raise StoreError(f"store {str(path)!r}: not a sweep store (no runs, meta and "
+                             "failures tables)")
+        self = cls.__new__(cls)
+        self.path = path
+        self._con = con
+        return self
+
     @staticmethod
     def _open_readonly(path: Path) -> sqlite3.Connection:
         """A read-only connection that creates no file: read-only on the live WAL when a

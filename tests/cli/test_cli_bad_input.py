@@ -27,6 +27,10 @@ def inputs(tmp_path, monkeypatch):
         "effects = 3\n[experiment]\ndrop_radius = 1.55e-3\nareal_mass = 0.0518\n"
         "length = 7e-3\nimpact_distance = 3e-3\nbending_modulus = 1e-6\n"
     )
+    ev = ("[rod]\nlength = 4.6\n[drop]\narea = 1.5\nwetted_length = 2.5\n[effects]\n"
+          "damping = 0.2\n[[drop.events]]\ntime = {t}\ns1 = 0.8\n")
+    (tmp_path / "ev.toml").write_text(ev.format(t=1.0))
+    (tmp_path / "evlate.toml").write_text(ev.format(t=100.0))
     (tmp_path / "folder").mkdir()
     return tmp_path
 
@@ -95,6 +99,15 @@ CASES = [
     (["impact", "supp-fig5", "--accuracy", "draft", "--set", "numerics.accuracy=publication"],
      "--accuracy", "--set numerics.accuracy=publication says otherwise"),
     (["impact", "supp-fig5", "--out", ""], "--out", "expected a folder"),
+    # a rest threshold above a percent of the capillary energy reads a moving rod at rest
+    (["impact", "supp-fig5", "--set", "numerics.rest_kinetic=1e9"], "numerics.rest_kinetic",
+     "0 < rest_kinetic <= 0.01"),
+    # a sweep refuses a grid point whose scene is invalid, or an event after t_max, before
+    # its store exists (not as failed runs)
+    (["sweep", "ev.toml", "--x", "2:4.2:2", "--delta", "0.5:0.6:2", "--accuracy", "draft",
+      "--out", "sw"], "drop.events[0]", "(at the sweep's point x = 4.2, Delta = 0.5)"),
+    (["sweep", "evlate.toml", "--x", "2:4.2:2", "--delta", "0.5:0.6:2", "--set",
+      "numerics.t_max=20", "--out", "sw"], "drop.events", "event after numerics.t_max = 20"),
     # strong damping: the capped dt needs too many steps (named), never an OverflowError
     (["impact", "supp-fig5", "--set", "effects.damping=1e160"], "effects.damping",
      "capped by the damping"),

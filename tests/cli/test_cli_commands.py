@@ -206,6 +206,41 @@ def test_plot_refuses_what_it_cannot_redraw(tmp_path, monkeypatch, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.txt"]
 
 
+def test_plot_refuses_damaged_files_and_never_writes_into_what_it_reads(tmp_path, monkeypatch,
+                                                                        capsys):
+    """A truncated impact .npz, a sweep.json with an outcome no run has, an SQLite file
+    that is not a store (left byte for byte as it was): one-line errors, exit 2, nothing
+    written."""
+    import sqlite3
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["impact", "supp-fig5", "--accuracy", "draft", "--set", "numerics.t_max=1",
+                 "--out", "i", "--progress", "none"]) == 0
+    capsys.readouterr()
+    npz = next((tmp_path / "i").glob("*.npz"))
+    (tmp_path / "trunc.npz").write_bytes(npz.read_bytes()[:4000])
+    sw = tmp_path / "sw"
+    sw.mkdir()
+    (sw / "sweep.json").write_text(json.dumps(
+        {"scene": "fig3-strip", "runs": [{"x": 1.0, "we_sqrt": 1.0, "outcome": "banana"}]}))
+    con = sqlite3.connect(tmp_path / "mine.sqlite")
+    con.execute("CREATE TABLE t (a)")
+    con.commit()
+    con.close()
+    before = (tmp_path / "mine.sqlite").read_bytes()
+    for argv, text in ((["plot", "trunc.npz", "--out", "o"], "not a readable .npz file"),
+                       (["plot", "sw", "--out", "o"], "runs[0]: outcome = 'banana'"),
+                       (["plot", "mine.sqlite", "--out", "o"], "without the sweep tables")):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err
+        assert err.startswith("elastocap: error: PATH: ") and text in err, err
+        assert err.count("\n") == 1
+    assert not (tmp_path / "o").exists()
+    assert (tmp_path / "mine.sqlite").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["i", "mine.sqlite", "sw",
+                                                           "trunc.npz"]
+
+
 # ------------------------------------------------------------------------------- README
 def _readme_commands(text):
     """The lines of the fenced block after the heading ``## Commands``: command -> options."""

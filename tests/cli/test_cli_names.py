@@ -82,6 +82,24 @@ def test_values_equal_to_six_digits_name_different_files(tmp_path, monkeypatch, 
     assert not (tmp_path / "o").exists()
 
 
+def test_a_scene_file_named_as_a_built_in_scene_never_overwrites_its_runs(tmp_path,
+                                                                          monkeypatch, capsys):
+    """A copy of supp-fig5 (same ``name``) with another damping: its own digest; the exact
+    copy names the built-in scene's files (the same run); a file scene of its own name is
+    digested whole."""
+    from importlib import resources
+
+    monkeypatch.chdir(tmp_path)
+    text = (resources.files("elastocap") / "scenes" / "supp-fig5.toml").read_text()
+    (tmp_path / "same.toml").write_text(text)
+    (tmp_path / "damped.toml").write_text(text.replace("damping = 0.2", "damping = 0.5"))
+    (tmp_path / "mine.toml").write_text(text.replace('name = "supp-fig5"', 'name = "mine"'))
+    names = {s: _suffix(["impact", s]) for s in ("supp-fig5", "same.toml", "damped.toml")}
+    assert names["supp-fig5"] == names["same.toml"] == ""
+    assert names["damped.toml"].startswith("-s")
+    assert _suffix(["impact", "mine.toml"]).startswith("-s")
+
+
 def test_distinct_overlays_never_overwrite(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
 

@@ -18,7 +18,7 @@ import pytest
 from continuation import ContinuationSettings
 from dynamics.contact import segment_distances
 from elastocap.geometry import count_crossings
-from elastocap.scene import SceneError, load_scene
+from elastocap.scene import load_scene
 from elastocap.strip.model import (
     DiscreteStrip,
     closest_segments,
@@ -162,9 +162,15 @@ def test_pairs_need_a_thickness():
         solve_equilibrium(st, np.zeros(st.size), pairs=[[19, 2, 1]])
 
 
-def test_branch_search_refuses_a_thickness():
-    with pytest.raises(SceneError, match="rod.thickness"):
-        trace_contact_branches(_hairpin_scene(), refine=False)
+def test_branch_search_runs_without_the_thickness_and_says_so():
+    """The search runs on a strip of thickness 0 and its metadata carries the note that
+    the command line prints as a warning."""
+    sc = _hairpin_scene(**{"numerics.accuracy": "draft"})
+    assert sc.rod.thickness > 0
+    bs = trace_contact_branches(sc, "drop.wetted_length", (1.0, 1.3), refine=False)
+    assert bs.problem.strip.thickness == 0.0
+    assert bs.metadata["contact_note"].startswith(
+        f"rod.thickness = {sc.rod.thickness:g} is left out of the strip's branch search")
 
 
 def test_hairpin_branch_ends_at_the_tip_lifting_off(hairpin100):
