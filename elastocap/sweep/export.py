@@ -9,6 +9,7 @@ store's columns (:data:`elastocap.sweep.store.COLUMNS`; the final shape only wit
 
 from __future__ import annotations
 
+import sqlite3
 from pathlib import Path
 
 from elastocap.io import atomic_path, check_writable_file
@@ -82,6 +83,8 @@ def load(store, positions: bool = False):
     try:
         cur = con.execute(f"SELECT {', '.join(names)} FROM runs ORDER BY id")
         rows = cur.fetchall()
+    except sqlite3.DatabaseError as err:  # an empty file, or another database
+        raise StoreError(f"store {str(path)!r}: not a sweep store ({err})") from None
     finally:
         con.close()
     df = pd.DataFrame.from_records(rows, columns=names)

@@ -99,3 +99,25 @@ def test_the_command_writes_the_export(tmp_path, capsys):
     rep = json.loads(capsys.readouterr().out)
     assert code == 0 and str(tmp_path / "runs.csv") in rep["files"]
     assert len(pd.read_csv(tmp_path / "runs.csv")) == rep["counts"]["runs"] == 2
+
+
+def test_load_refuses_what_is_not_a_store_and_writes_nothing(tmp_path):
+    """An empty file and another SQLite database: StoreError naming the file, both left
+    as they were (no tables added, no -wal / -shm)."""
+    import sqlite3
+
+    from elastocap.sweep.store import StoreError
+
+    empty = tmp_path / "empty.sqlite"
+    empty.write_bytes(b"")
+    other = tmp_path / "other.sqlite"
+    con = sqlite3.connect(other)
+    con.execute("CREATE TABLE t (a)")
+    con.commit()
+    con.close()
+    before = other.read_bytes()
+    for path in (empty, other):
+        with pytest.raises(StoreError, match=f"store '{path}'"):
+            load(path)
+    assert empty.read_bytes() == b"" and other.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.sqlite", "other.sqlite"]
