@@ -500,7 +500,13 @@ class Scene:
             out["L_over_l_eg"] = self.rod.length / leg
             out["x_over_l_eg"] = self.distance_from_end / leg
         if self.spreading is not None:
-            out["we_sqrt"] = self.spreading.we_sqrt(d.wetted_length)
+            w = self.spreading.we_sqrt(d.wetted_length)
+            # below delta0 no impact spreads the drop this little: no We^1/2, and why
+            out["we_sqrt"] = w if w >= 0.0 else None
+            if w < 0.0:
+                out["we_sqrt_note"] = (f"Delta = {d.wetted_length:.6g} is below the spreading "
+                                       f"law's delta0 = {self.spreading.delta0:.6g}: no "
+                                       "impact speed gives it")
         if self.experiment is not None:
             e = self.experiment
             out["experiment"] = {
@@ -555,6 +561,11 @@ def _events(raw: Any, L: float) -> tuple[DropEvent, ...]:
     times = [e.time for e in out]
     if times != sorted(times):
         raise SceneError("drop.events", times, "events must be listed in increasing time")
+    for a, b in zip(out, out[1:], strict=False):
+        for k in ("s1", "s2"):
+            if a.time == b.time and getattr(a, k) is not None and getattr(b, k) is not None:
+                raise SceneError("drop.events", times,
+                                 f"two events at time {a.time:g} both set {k}: give one")
     return tuple(out)
 
 
@@ -590,7 +601,15 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
             experiment = units.Experiment(**exp_sec)
             dim = experiment.dimensionless()
         except ValueError as err:
-            raise SceneError("experiment", data["experiment"], str(err)) from None
+            # "key: got ..." from elastocap.units names the experiment key at fault
+            text = str(err)
+            key, _, rest = text.partition(": ")
+            if key in exp_sec and rest:
+                raise SceneError(f"experiment.{key}", exp_sec[key],
+                                 rest.split("; ", 1)[-1] if rest.startswith("got ") else rest
+                                 ) from None
+            raise SceneError("experiment", data["experiment"],
+                             text.removeprefix("experiment: ")) from None
         if raw_rod is not None:
             raise SceneError("rod", raw_rod, "give either [experiment] or [rod], not both")
         if raw_spr is not None:

@@ -147,6 +147,12 @@ class Experiment:
     def bending(self) -> float:
         """B, N m."""
         if self.bending_modulus is not None:
+            both = [k for k in ("youngs_modulus", "poisson_ratio") if getattr(self, k) is not None]
+            if both:  # which B was meant is not knowable (thickness alone sets the contact)
+                raise ValueError(
+                    f"bending_modulus: got {self.bending_modulus!r}; {' and '.join(both)} "
+                    "given too: give bending_modulus, or youngs_modulus, thickness and "
+                    "poisson_ratio, not both")
             return _positive("bending_modulus", self.bending_modulus)
         missing = [
             k for k in ("youngs_modulus", "thickness", "poisson_ratio") if getattr(self, k) is None

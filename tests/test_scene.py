@@ -127,8 +127,21 @@ def test_bad_toml_file(tmp_path):
 def test_experiment_section_excludes_rod():
     with pytest.raises(SceneError, match="either \\[experiment\\] or \\[rod\\]"):
         load_scene("fig3-experiment", {"rod.length": 3.0})
-    with pytest.raises(SceneError, match="experiment: got .*covers 1.2 mm to 1.85 mm"):
+    with pytest.raises(SceneError, match="experiment.drop_radius: got 0.003; .*covers 1.2 mm "
+                       "to 1.85 mm") as err:
         load_scene("fig3-experiment", {"experiment.drop_radius": 3e-3})
+    assert err.value.key == "experiment.drop_radius"  # the key at fault, not the section
+
+
+def test_experiment_bending_modulus_and_youngs_modulus_together_are_refused():
+    """Which B was meant is not knowable: bending_modulus with E and nu is refused (the
+    thickness alone may go with bending_modulus: it sets the rod's contact)."""
+    base = {"experiment.youngs_modulus": 1e6, "experiment.thickness": 55e-6,
+            "experiment.poisson_ratio": 0.5}
+    with pytest.raises(SceneError, match="youngs_modulus and poisson_ratio given too") as err:
+        load_scene("fig3-experiment", base)  # its bending_modulus is set
+    assert err.value.key == "experiment.bending_modulus"
+    assert load_scene("fig3-experiment", {"experiment.thickness": 55e-6}).rod.thickness > 0
 
 
 @given(

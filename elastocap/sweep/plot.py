@@ -89,6 +89,10 @@ def load_experiments(path: str | Path) -> list[dict]:
                     f"must be numbers, got {row['x_over_leg']!r}, "
                     f"{row['we_sqrt']!r}"
                 ) from None
+            if not (math.isfinite(xv) and math.isfinite(wv)):
+                raise ValueError(
+                    f"--experiments {path}, line {line}: x_over_leg and we_sqrt must be "
+                    f"finite, got {xv!r}, {wv!r}")
             o = _OUTCOME_WORDS.get(row["outcome"].lower())
             if o is None:
                 raise ValueError(

@@ -31,6 +31,8 @@ def inputs(tmp_path, monkeypatch):
           "damping = 0.2\n[[drop.events]]\ntime = {t}\ns1 = 0.8\n")
     (tmp_path / "ev.toml").write_text(ev.format(t=1.0))
     (tmp_path / "evlate.toml").write_text(ev.format(t=100.0))
+    (tmp_path / "evtwice.toml").write_text(ev.format(t=1.0) + "[[drop.events]]\ntime = 1.0\n"
+                                           "s1 = 0.9\n")
     (tmp_path / "folder").mkdir()
     return tmp_path
 
@@ -108,6 +110,7 @@ CASES = [
       "--out", "sw"], "drop.events[0]", "(at the sweep's point x = 4.2, Delta = 0.5)"),
     (["sweep", "evlate.toml", "--x", "2:4.2:2", "--delta", "0.5:0.6:2", "--set",
       "numerics.t_max=20", "--out", "sw"], "drop.events", "event after numerics.t_max = 20"),
+    (["show", "evtwice.toml"], "drop.events", "two events at time 1 both set s1"),
     # strong damping: the capped dt needs too many steps (named), never an OverflowError
     (["impact", "supp-fig5", "--set", "effects.damping=1e160"], "effects.damping",
      "capped by the damping"),

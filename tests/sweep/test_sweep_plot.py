@@ -98,6 +98,8 @@ def test_experimental_points_from_csv(tmp_path):
         ("x,we_sqrt,outcome\n1,2,open\n", r"missing column\(s\) x_over_leg"),
         ("x_over_leg,we_sqrt,outcome\n1,fast,open\n", r"line 2: x_over_leg and we_sqrt must"),
         ("x_over_leg,we_sqrt,outcome\n1,2,open\n1,2,maybe\n", r"line 3: outcome 'maybe'"),
+        ("x_over_leg,we_sqrt,outcome\n1,nan,open\n", r"line 2: .* must be finite, got 1.0, nan"),
+        ("x_over_leg,we_sqrt,outcome\n1,2,open\ninf,2,open\n", r"line 3: .* must be finite"),
     ],
 )
 def test_bad_experiment_csv_by_message(tmp_path, text, match):
