@@ -245,7 +245,13 @@ class BranchSet:
             bs.branches.append(Branch.load(path))
             bs.labels.append(line["label"])
         for key in cls.SPECIAL:
-            setattr(bs, key, data.get(key, []))
+            items = data.get(key, [])
+            for k, item in enumerate(items):
+                v = item.get("value") if isinstance(item, dict) else None
+                if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)):
+                    raise ValueError(f"{str(js)!r}: {key}[{k}].value = {v!r}; BranchSet.save "
+                                     "writes finite values only")
+            setattr(bs, key, items)
         known = {"scene", "parameter", "range", "branches", "metadata", "format",
                  *cls.SPECIAL}
         bs.results = {k: v for k, v in data.items() if k not in known}

@@ -88,6 +88,11 @@ def load(store, positions: bool = False):
     finally:
         con.close()
     df = pd.DataFrame.from_records(rows, columns=names)
+    bad = df[~df["outcome"].isin(("open", "encapsulated", "undecided"))]
+    if len(bad):  # a store sweeps write never holds these: a damaged or edited file
+        raise StoreError(f"store {str(path)!r}: run id {int(bad['id'].iloc[0])} has outcome "
+                         f"{bad['outcome'].iloc[0]!r}; expected open, encapsulated or "
+                         "undecided")
     if positions:
         df["final_positions"] = [decode_positions(b) for b in df["final_positions"]]
     # an undecided run is undecided under both criteria (stores written before the run

@@ -201,6 +201,11 @@ def test_branches_cli_writes_files(tmp_path, capsys):
         assert [(s.kind, s.p, s.located) for s in a.special_points] == \
             [(s.kind, s.p, s.located) for s in b.special_points]
         assert all(isinstance(s.precision, float) for s in b.special_points)
+    # a damaged branches.json (a fold's value NaN) is refused by name, not drawn
+    saved["folds"][0]["value"] = float("nan")
+    (tmp_path / "branches.json").write_text(json.dumps(saved))
+    with pytest.raises(ValueError, match=r"folds\[0\].value = nan; BranchSet.save writes"):
+        BranchSet.load(tmp_path)
 
 
 def test_bad_range_exit_2(capsys):

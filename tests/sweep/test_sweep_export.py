@@ -121,3 +121,16 @@ def test_load_refuses_what_is_not_a_store_and_writes_nothing(tmp_path):
             load(path)
     assert empty.read_bytes() == b"" and other.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.sqlite", "other.sqlite"]
+
+
+def test_load_refuses_a_run_with_an_outcome_no_run_has(store):
+    import sqlite3
+
+    from elastocap.sweep.store import StoreError
+
+    con = sqlite3.connect(store)
+    con.execute("UPDATE runs SET outcome = 'banana' WHERE id = (SELECT MIN(id) FROM runs)")
+    con.commit()
+    con.close()
+    with pytest.raises(StoreError, match="has outcome 'banana'; expected open"):
+        load(store)
