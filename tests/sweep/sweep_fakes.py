@@ -6,6 +6,7 @@ import json
 import math
 import os
 import signal
+import sqlite3
 import time
 from pathlib import Path
 
@@ -204,3 +205,14 @@ def companion_decides_undecided_run(scene_name, scene_json):
 
 
 companion_decides_undecided_run.runner = "fake-companion-decides-undecided"
+
+
+def execute_sql(path, sql: str) -> None:
+    """Run one SQL statement on an SQLite file and commit (a store tampered with, or
+    another database made)."""
+    con = sqlite3.connect(path)
+    try:
+        con.execute(sql)
+        con.commit()
+    finally:
+        con.close()

@@ -104,17 +104,12 @@ def test_the_command_writes_the_export(tmp_path, capsys):
 def test_load_refuses_what_is_not_a_store_and_writes_nothing(tmp_path):
     """An empty file and another SQLite database: StoreError naming the file, both left
     as they were (no tables added, no -wal / -shm)."""
-    import sqlite3
-
     from elastocap.sweep.store import StoreError
 
     empty = tmp_path / "empty.sqlite"
     empty.write_bytes(b"")
     other = tmp_path / "other.sqlite"
-    con = sqlite3.connect(other)
-    con.execute("CREATE TABLE t (a)")
-    con.commit()
-    con.close()
+    fk.execute_sql(other, "CREATE TABLE t (a)")
     before = other.read_bytes()
     for path in (empty, other):
         with pytest.raises(StoreError, match=f"store '{path}'"):
@@ -124,13 +119,9 @@ def test_load_refuses_what_is_not_a_store_and_writes_nothing(tmp_path):
 
 
 def test_load_refuses_a_run_with_an_outcome_no_run_has(store):
-    import sqlite3
-
     from elastocap.sweep.store import StoreError
 
-    con = sqlite3.connect(store)
-    con.execute("UPDATE runs SET outcome = 'banana' WHERE id = (SELECT MIN(id) FROM runs)")
-    con.commit()
-    con.close()
+    fk.execute_sql(store, "UPDATE runs SET outcome = 'banana' WHERE id = (SELECT MIN(id) "
+                   "FROM runs)")
     with pytest.raises(StoreError, match="has outcome 'banana'; expected open"):
         load(store)

@@ -2,13 +2,13 @@
 writers (separate processes) without corruption or duplicates."""
 
 import os
-import sqlite3
 import subprocess
 import sys
 import textwrap
 
 import numpy as np
 import pytest
+import sweep_fakes as fk
 
 from elastocap.sweep.store import COLUMNS, ResultStore, StoreError
 
@@ -66,10 +66,7 @@ def test_incomplete_row_is_refused_and_nothing_written(tmp_path):
 def test_other_schema_and_non_sqlite_files_are_refused(tmp_path):
     p = tmp_path / "s.sqlite"
     ResultStore(p).close()
-    con = sqlite3.connect(p)
-    con.execute("UPDATE meta SET value = '99' WHERE key = 'schema_version'")
-    con.commit()
-    con.close()
+    fk.execute_sql(p, "UPDATE meta SET value = '99' WHERE key = 'schema_version'")
     with pytest.raises(StoreError, match="schema version 99, this elastocap writes version 2"):
         ResultStore(p)
     with pytest.raises(StoreError, match="schema version 99"):
@@ -81,10 +78,7 @@ def test_other_schema_and_non_sqlite_files_are_refused(tmp_path):
     with pytest.raises(StoreError, match="not a usable sweep store"):
         ResultStore.check(junk)
     other = tmp_path / "other.sqlite"
-    con = sqlite3.connect(other)
-    con.execute("CREATE TABLE t (a)")
-    con.commit()
-    con.close()
+    fk.execute_sql(other, "CREATE TABLE t (a)")
     with pytest.raises(StoreError, match="without the sweep tables"):
         ResultStore.check(other)
     ResultStore.check(tmp_path / "new.sqlite")  # a missing file is fine, and not created
