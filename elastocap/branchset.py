@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from continuation import Branch
-from elastocap.jsonutil import jsonable
+from elastocap.jsonutil import is_finite_number, jsonable
 from elastocap.scene import Scene
 
 __all__ = ["BranchModel", "BranchSet", "finite_or_none"]
@@ -248,7 +248,7 @@ class BranchSet:
             items = data.get(key, [])
             for k, item in enumerate(items):
                 v = item.get("value") if isinstance(item, dict) else None
-                if v is not None and not (isinstance(v, (int, float)) and math.isfinite(v)):
+                if v is not None and not is_finite_number(v):
                     raise ValueError(f"{str(js)!r}: {key}[{k}].value = {v!r}; BranchSet.save "
                                      "writes finite values only")
             setattr(bs, key, items)

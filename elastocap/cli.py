@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -18,7 +17,7 @@ from elastocap.cli_args import check_resources, force_argument, run_suffix
 from elastocap.cli_args import load_scene_from_args as _load
 from elastocap.cli_args import scene_arguments as _scene_args
 from elastocap.io import OutputFolder
-from elastocap.jsonutil import jsonable
+from elastocap.jsonutil import is_finite_number, jsonable
 from elastocap.scene import SceneError, builtin_scene_names, load_scene
 
 DEFAULT_SCENE = "supp-fig5"
@@ -137,9 +136,12 @@ def _trace(args, scene=None, progress=None, step=(0, 0)):
         return trace_branches(scene, args.param, prange)
 
 
-def _warn_unlocated(bs) -> None:
-    """One warning line on stderr per special point that was bracketed but not located
-    (the report and the JSON list them too, under ``unlocated``)."""
+def _warn_statics(bs) -> None:
+    """The warnings of a traced branch set on stderr: what the model leaves out of the
+    scene (a thickness), and one line per special point bracketed but not located (the
+    report and the JSON list them too, under ``unlocated``)."""
+    if bs.metadata.get("contact_note"):
+        print(f"elastocap: warning: {bs.metadata['contact_note']}", file=sys.stderr)
     for u in getattr(bs, "unlocated", ()):
         hint = f"; {u['what_to_try']}" if u.get("what_to_try") else ""
         print(f"elastocap: warning: {u.get('kind', 'point')} near {u['value']:.6g} not "
@@ -184,9 +186,7 @@ def cmd_branches(args) -> int:
     bs = _trace_or_fail(args, scene, progress, (0, 2))
     if bs is None:
         return 1
-    if bs.metadata.get("contact_note"):
-        print(f"elastocap: warning: {bs.metadata['contact_note']}", file=sys.stderr)
-    _warn_unlocated(bs)
+    _warn_statics(bs)
     progress(1, 2, f"{len(bs.branches)} branches traced; writing the files and the figure")
     paths = bs.save(folder)
     paths.append(folder.savefig(lambda path: bs.plot(path), "branches.png"))
@@ -287,9 +287,7 @@ def cmd_folds(args) -> int:
         return 1
     progress(1, 1, f"folds located: {len(bs.folds)}")
     progress.close()
-    if bs.metadata.get("contact_note"):
-        print(f"elastocap: warning: {bs.metadata['contact_note']}", file=sys.stderr)
-    _warn_unlocated(bs)
+    _warn_statics(bs)
     if expected is not None:
         ok, table = compare_folds(bs.folds, expected, rtol, getattr(bs, "unlocated", ()))
         if args.json:
@@ -610,7 +608,7 @@ def _impact_file_problem(ctx: dict, sim) -> str:
     if not np.all(np.isfinite(sim.positions)):
         return "non-finite positions"
     fm = ctx.get("final_measure")
-    if ctx["outcome"] != "failed" and not (isinstance(fm, (int, float)) and math.isfinite(fm)):
+    if ctx["outcome"] != "failed" and not is_finite_number(fm):
         return f"final_measure {fm!r} (expected a finite number)"
     return ""
 

@@ -355,7 +355,9 @@ def impact_settings(scene: Scene) -> dict:
         dt = dt_damping
     scale = scene.drop.line_tension * delta
     ratio = rest_damping_ratio(scene)
-    if not num.rest_kinetic * scale / (ratio * ratio) > 0.0:
+    # ratio * ratio, not ratio ** 2: inf (a threshold of 0, refused), not an OverflowError
+    rest_kinetic = num.rest_kinetic * scale / (ratio * ratio)
+    if not rest_kinetic > 0.0:
         key, value = (("numerics.rest_time", num.rest_time) if num.rest_time > 1.0
                       else ("effects.damping", scene.effects.damping))
         raise SceneError(
@@ -370,9 +372,7 @@ def impact_settings(scene: Scene) -> dict:
         "dt": dt,
         "dt_max": dt_max,
         "t_max": num.t_max,
-        # ratio * ratio, not ratio ** 2: inf, not an OverflowError, at a huge ratio
-        "rest_kinetic": num.rest_kinetic * scale / (rest_damping_ratio(scene)
-                                                    * rest_damping_ratio(scene)),
+        "rest_kinetic": rest_kinetic,
         "rest_time": num.rest_time,
         "dt_limited_by_damping": damping_limited,
     }

@@ -14,7 +14,12 @@ import math
 
 import numpy as np
 
-__all__ = ["jsonable"]
+__all__ = ["is_finite_number", "jsonable"]
+
+
+def is_finite_number(v) -> bool:
+    """Whether a value read back from JSON is a finite number (not a bool, None or text)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def jsonable(obj):

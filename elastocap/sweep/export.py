@@ -14,7 +14,13 @@ from pathlib import Path
 
 from elastocap.io import atomic_path, check_writable_file
 from elastocap.sweep.executors import MissingExtraError
-from elastocap.sweep.store import COLUMNS, ResultStore, StoreError, decode_positions
+from elastocap.sweep.store import (
+    COLUMNS,
+    OUTCOMES,
+    ResultStore,
+    StoreError,
+    decode_positions,
+)
 
 __all__ = ["EXPORT_SUFFIXES", "check_export", "export_runs", "load"]
 
@@ -88,11 +94,10 @@ def load(store, positions: bool = False):
     finally:
         con.close()
     df = pd.DataFrame.from_records(rows, columns=names)
-    bad = df[~df["outcome"].isin(("open", "encapsulated", "undecided"))]
+    bad = df[~df["outcome"].isin(OUTCOMES)]
     if len(bad):  # a store sweeps write never holds these: a damaged or edited file
         raise StoreError(f"store {str(path)!r}: run id {int(bad['id'].iloc[0])} has outcome "
-                         f"{bad['outcome'].iloc[0]!r}; expected open, encapsulated or "
-                         "undecided")
+                         f"{bad['outcome'].iloc[0]!r}; expected one of {', '.join(OUTCOMES)}")
     if positions:
         df["final_positions"] = [decode_positions(b) for b in df["final_positions"]]
     # an undecided run is undecided under both criteria (stores written before the run

@@ -38,14 +38,12 @@ def check_report(report, origin: str) -> None:
     """Refuse (ValueError naming ``origin``, the run and the field) a sweep report that
     :func:`plot_phase_diagram` cannot draw faithfully: not a dict with a list of runs, a
     run without a finite x, a non-finite We^1/2 or Delta, an outcome no run can have."""
-    from elastocap.criteria import OUTCOMES
+    from elastocap.jsonutil import is_finite_number as finite
+    from elastocap.sweep.store import OUTCOMES
 
     runs = report.get("runs") if isinstance(report, dict) else None
     if not isinstance(runs, list):
         raise ValueError(f"PATH: {origin}: not a sweep report (no list of runs under 'runs')")
-
-    def finite(v):
-        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
     for k, r in enumerate(runs):
         where = f"PATH: {origin}: runs[{k}]"
