@@ -205,9 +205,6 @@ def cmd_branches(args) -> int:
 
 def _folds_curve(args, expected, rtol) -> int:
     """``folds SCENE --curve KEY LO HI``: fold curves, cusps, the bistability region."""
-    import os
-    import tempfile
-
     from elastocap.statics.bistability import fold_curve_report, plot_bistability
     from elastocap.testing import compare_folds
 
@@ -217,26 +214,17 @@ def _folds_curve(args, expected, rtol) -> int:
     except ValueError:
         raise UsageError(f"--curve: got {args.curve}; expected KEY LO HI (numbers)") from None
     scene = _load(args)
-    out = Path(args.out) if args.out else None
-    if out is not None and out.exists() and not out.is_dir():
-        raise UsageError(f"--out: got {str(out)!r}; expected a directory")
+    # checked before the work: a file, or a folder that cannot be written, is refused now
+    folder = (_out_folder(args, "", f"fold-curves-{scene.name}") if args.out is not None
+              else None)
     rep = fold_curve_report(scene, key, (lo, hi))
     bs, curves = rep.pop("_objects")
     files = []
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        js = out / f"fold-curves-{scene.name}.json"
-        png = out / f"fold-curves-{scene.name}.png"
-        for path, write in ((js, lambda f: f.write(json.dumps(jsonable(rep), indent=2))),):
-            fd, tmp = tempfile.mkstemp(dir=out, suffix=".tmp")
-            with os.fdopen(fd, "w") as f:
-                write(f)
-            os.replace(tmp, path)
-        fd, tmp = tempfile.mkstemp(dir=out, suffix=".png")
-        os.close(fd)
-        plot_bistability(scene, bs, curves, key, tmp)
-        os.replace(tmp, png)
-        files = [str(js), str(png)]
+    if folder is not None:
+        files = [folder.write_json(f"fold-curves-{scene.name}.json", rep),
+                 folder.savefig(lambda path: plot_bistability(scene, bs, curves, key, path),
+                                f"fold-curves-{scene.name}.png")]
+        files = [str(f) for f in files]
         rep["files"] = files
     ok = True
     if expected is not None:
@@ -673,7 +661,7 @@ def cmd_plot(args) -> int:
             except (OSError, ValueError) as err:
                 raise UsageError(f"PATH: got {str(src)!r}; not a readable sweep.json "
                                  f"({err})") from None
-            check_report(report, str(src))
+        check_report(report, str(src))  # a store's rows too: a damaged row is refused
         def draw(p):
             return plot_phase_diagram(report, p)
 

@@ -135,13 +135,32 @@ def _probe(folder: Path, key: str, value, what: str) -> None:
     os.unlink(name)
 
 
+def _without_dotdot_in_new_part(path: Path) -> Path:
+    """``path`` with ``name/..`` pairs removed from the part that does not exist yet.
+
+    ``out/new/../b`` means ``out/b`` to the user, but making it folder by folder (as
+    ``mkdir(parents=True)`` does) would leave an empty ``out/new`` behind. The existing
+    part is left to the operating system (a symbolic link there keeps its meaning).
+    """
+    parts = path.parts
+    k = len(parts)
+    while k > 0 and not Path(*parts[:k]).exists():
+        k -= 1
+    new = parts[k:]
+    if ".." not in new:
+        return path
+    head = Path(*parts[:k]) if k else Path(".")
+    return head / os.path.normpath(os.path.join(*new))
+
+
 def check_output_folder(path, key: str = "--out") -> Path:
     """Refuse, before any work, an output folder that cannot be written.
 
     ``path`` may exist (a writable folder) or not (its nearest existing ancestor must be a
-    writable folder). Nothing is created; a probe file is made and removed.
+    writable folder). Nothing is created; a probe file is made and removed. Returns the
+    path to make, with ``name/..`` pairs of its new part removed.
     """
-    path = Path(path)
+    path = _without_dotdot_in_new_part(Path(path))
     value = str(path)
     if path.exists() and not path.is_dir():
         raise OutputError(key, value, "this is a file; expected a folder (existing or new)")
@@ -156,7 +175,7 @@ def check_writable_file(path, key: str) -> Path:
     """Refuse, before any work, a file that cannot be written (or made): its folder must be
     writable (a store also writes journal files beside it) and an existing file openable for
     writing. Nothing is changed (the file is opened for appending and closed)."""
-    path = Path(path)
+    path = _without_dotdot_in_new_part(Path(path))
     if path.exists() and not path.is_file():
         raise OutputError(key, str(path), "not a file; give a file name")
     check_output_folder(path.parent if str(path.parent) else Path("."), key)

@@ -133,6 +133,23 @@ def test_experiment_section_excludes_rod():
     assert err.value.key == "experiment.drop_radius"  # the key at fault, not the section
 
 
+def test_a_refused_derived_key_names_the_experiment_inputs_it_follows_from():
+    """The user of an [experiment] scene never wrote drop.wetted_length: its refusal says
+    which of the inputs they wrote it follows from."""
+    with pytest.raises(SceneError) as err:
+        load_scene("fig3-experiment", {"experiment.impact_speed": 9000.0})
+    assert err.value.key == "drop.wetted_length"
+    assert "(derived from [experiment]: impact_speed = 9000.0, drop_radius = " in str(err.value)
+    with pytest.raises(SceneError) as err:
+        load_scene("fig3-experiment", {"experiment.impact_distance": 1.0})
+    assert err.value.key == "drop.distance_from_end"
+    assert "(derived from [experiment]: impact_distance = 1.0" in str(err.value)
+    # a key the user wrote is named as it was, with no note
+    with pytest.raises(SceneError) as err:
+        load_scene("fig3-experiment", {"drop.interface_contact": "splash"})
+    assert "derived from" not in str(err.value)
+
+
 def test_experiment_bending_modulus_and_youngs_modulus_together_are_refused():
     """Which B was meant is not knowable: bending_modulus with E and nu is refused (the
     thickness alone may go with bending_modulus: it sets the rod's contact)."""

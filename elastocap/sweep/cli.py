@@ -164,8 +164,8 @@ def _validate(args):
     out = Path(args.out) if args.out else Path("out") / f"sweep-{scene.name}"
     store = Path(args.store) if args.store else out / "sweep.sqlite"
     # a file, or not writable: refused before any run
-    check_output_folder(out, "--out")
-    check_writable_file(store, "--store")
+    out = check_output_folder(out, "--out")
+    store = check_writable_file(store, "--store")
     points, _, resolutions = plan_sweep(scene, xs, we_sqrts=we, deltas=delta,
                                         verify_levels=levels)
     # every run's memory and time steps at the finest level, smallest and largest Delta

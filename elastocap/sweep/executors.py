@@ -167,13 +167,33 @@ class SweepExecutor:
         return max(1, IN_FLIGHT_PER_SLOT * self.slots)
 
 
-def check_workers(workers) -> int:
-    """``workers`` as an integer >= 1 (None = one per core)."""
-    if workers is None:
+#: Local worker processes allowed per usable core. Each worker is a process of its own that
+#: imports numba and loads the compiled stepper (about 200 MB); beyond one per core they only
+#: share the cores, so a count far above it is a typing error, not a request.
+WORKERS_PER_CORE_MAX = 4
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system tells it)."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except (AttributeError, OSError):
         return os.cpu_count() or 1
+
+
+def check_workers(workers) -> int:
+    """``workers`` as an integer from 1 to ``WORKERS_PER_CORE_MAX`` per usable core
+    (None = one per core)."""
+    if workers is None:
+        return usable_cores()
+    top = WORKERS_PER_CORE_MAX * usable_cores()
     # any integer type (numpy's too), as a plain int
-    if isinstance(workers, bool) or not isinstance(workers, numbers.Integral) or workers < 1:
-        raise ValueError(f"--workers: got {workers!r}; expected an integer >= 1")
+    if (isinstance(workers, bool) or not isinstance(workers, numbers.Integral)
+            or not 1 <= workers <= top):
+        raise ValueError(
+            f"--workers: got {workers!r}; expected an integer from 1 to {top} "
+            f"({WORKERS_PER_CORE_MAX} per core of the {usable_cores()} this process may use: "
+            "each worker is a process of its own, and more than one per core only share them)")
     return int(workers)
 
 

@@ -47,7 +47,7 @@ def check_export(path) -> Path:
                          f"{' or '.join(EXPORT_SUFFIXES)}")
     if path.is_dir():
         raise ValueError(f"--export: got {str(path)!r}; a directory, expected a file name")
-    check_writable_file(path, "--export")  # its folder may be new: made when written
+    path = check_writable_file(path, "--export")  # its folder may be new: made when written
     try:
         _pandas("--export")
         if path.suffix.lower() == ".parquet":

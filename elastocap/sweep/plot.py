@@ -51,7 +51,7 @@ def check_report(report, origin: str) -> None:
             raise ValueError(f"{where}: not a run (a JSON object expected)")
         if not finite(r.get("x")):
             raise ValueError(f"{where}: x = {r.get('x')!r}; expected a finite number")
-        for key in ("we_sqrt", "wetted_length"):
+        for key in ("we_sqrt", "wetted_length", "final_measure", "companion_measure"):
             if r.get(key) is not None and not finite(r[key]):
                 raise ValueError(f"{where}: {key} = {r[key]!r}; expected a finite number")
         if r.get("we_sqrt") is None and r.get("wetted_length") is None:

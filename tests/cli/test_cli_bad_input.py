@@ -119,6 +119,9 @@ CASES = [
     (["impact", "supp-fig5", "--set", "numerics.rest_time=1e300"], "numerics.rest_time",
      "underflows"),
     (["sweep", "fig3-strip", "--x", "1:2:2", "--we=-1:2:2"], "--we", "We^1/2 >= 0"),
+    # a worker is a process of its own: thousands of them are a typing error
+    (["sweep", "fig3-strip", "--x", "1:2:2", "--we", "1:2:2", "--workers", "100000"],
+     "--workers", "4 per core of the"),
     (["sweep", "fig3-strip", "--x", "1:2:2", "--we", "-1:2:2"], "argument --we",
      "written with '='"),
     # sweeps: every run estimated up front at the plan's finest resolution

@@ -113,6 +113,30 @@ def test_folder_removes_only_its_own_earlier_outputs(tmp_path):
     assert runs == {"branches": ["branch_0.npz"], "impact-a": ["impact-a.json"]}
 
 
+@pytest.mark.parametrize("given, made", [
+    ("X/a/../b", "X/b"), ("X/a/b/../../c", "X/c"), ("X/a/..", "X"), ("X/a/./b/..", "X/a")])
+def test_dotdot_in_a_new_folder_leaves_no_stray_folder(tmp_path, given, made):
+    """``X/a/../b`` means ``X/b``: making it folder by folder would leave an empty ``X/a``."""
+    (tmp_path / "X").mkdir()
+    f = OutputFolder(tmp_path / given, "branches")
+    f.write_text("branches.json", "{}")
+    assert (tmp_path / made / "branches.json").is_file()
+    assert {str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_dir()} == (
+        {"X", made} if made != "X" else {"X"})
+
+
+def test_dotdot_through_an_existing_link_keeps_its_meaning(tmp_path):
+    """In the existing part of the path ``..`` is the operating system's: through a symbolic
+    link it leads to the link target's parent, which the tidy must not change."""
+    (tmp_path / "real" / "inner").mkdir(parents=True)
+    (tmp_path / "X").mkdir()
+    (tmp_path / "X" / "link").symlink_to(tmp_path / "real" / "inner")
+    f = OutputFolder(tmp_path / "X" / "link" / ".." / "new", "branches")
+    f.write_text("branches.json", "{}")
+    assert (tmp_path / "real" / "new" / "branches.json").is_file()
+    assert not (tmp_path / "X" / "new").exists()
+
+
 def test_manifest_cannot_point_outside(tmp_path):
     out = tmp_path / "o"
     out.mkdir()

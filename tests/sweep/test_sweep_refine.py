@@ -310,7 +310,8 @@ def _plotted(fig):
                   for ln in ax.lines)
 
 
-def test_a_bare_store_redraws_the_same_diagram_without_running(tmp_path, pool, monkeypatch):
+def test_a_bare_store_redraws_the_same_diagram_without_running(tmp_path, pool, monkeypatch,
+                                                                capsys):
     import elastocap.impact
     import elastocap.sweep.tasks
     from elastocap.cli import main
@@ -339,3 +340,16 @@ def test_a_bare_store_redraws_the_same_diagram_without_running(tmp_path, pool, m
     assert main(["plot", "s.sqlite", "--out", "re"]) == 0
     assert (tmp_path / "re" / "phase-diagram.png").stat().st_size > 1000
     assert main(["plot", "missing.sqlite"]) == 2
+    # a damaged row is refused as a sweep.json's would be, and nothing is drawn
+    import shutil
+
+    import sweep_fakes as fk
+
+    shutil.copy(store, tmp_path / "d.sqlite")
+    fk.execute_sql(tmp_path / "d.sqlite", "UPDATE runs SET final_measure = 1e999 WHERE id = "
+                   "(SELECT MIN(id) FROM runs)")
+    capsys.readouterr()
+    assert main(["plot", "d.sqlite", "--out", "d"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("elastocap: error: PATH: ") and "final_measure = inf" in err, err
+    assert not (tmp_path / "d").exists()
