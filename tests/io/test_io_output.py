@@ -4,9 +4,12 @@ checked before the work."""
 import json
 import os
 import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from elastocap.cli import main
 from elastocap.io import (
@@ -123,6 +126,27 @@ def test_dotdot_in_a_new_folder_leaves_no_stray_folder(tmp_path, given, made):
     assert (tmp_path / made / "branches.json").is_file()
     assert {str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*") if p.is_dir()} == (
         {"X", made} if made != "X" else {"X"})
+
+
+@settings(max_examples=30)
+@given(parts=st.lists(st.sampled_from(["a", "b", "X", "..", "."]), min_size=1, max_size=7))
+def test_any_dotdot_path_makes_its_target_and_only_the_folders_on_the_way(parts):
+    """Paths of new and existing names, ``.`` and ``..``: the folder made is the one the
+    path names (``os.path.normpath`` of it, no link on the way), and every folder made lies
+    on the way to it."""
+    with tempfile.TemporaryDirectory() as root:
+        root = Path(root)
+        (root / "X").mkdir()
+        target = os.path.normpath(os.path.join("X", *parts))
+        assume(not target.startswith(".."))
+        before = {p for p in root.rglob("*")}
+        f = OutputFolder(root / "X" / os.path.join(*parts), "branches")
+        f.write_text("branches.json", "{}")
+        assert (root / target / "branches.json").is_file()
+        made = {p.relative_to(root) for p in root.rglob("*") if p.is_dir()} - {
+            p.relative_to(root) for p in before}
+        on_the_way = {Path(target), *Path(target).parents}
+        assert made <= on_the_way, (parts, made)
 
 
 def test_dotdot_through_an_existing_link_keeps_its_meaning(tmp_path):
