@@ -221,10 +221,9 @@ def _folds_curve(args, expected, rtol) -> int:
     bs, curves = rep.pop("_objects")
     files = []
     if folder is not None:
-        files = [folder.write_json(f"fold-curves-{scene.name}.json", rep),
-                 folder.savefig(lambda path: plot_bistability(scene, bs, curves, key, path),
-                                f"fold-curves-{scene.name}.png")]
-        files = [str(f) for f in files]
+        files = [str(folder.write_json(f"fold-curves-{scene.name}.json", rep)),
+                 str(folder.savefig(lambda path: plot_bistability(scene, bs, curves, key, path),
+                                    f"fold-curves-{scene.name}.png"))]
         rep["files"] = files
     ok = True
     if expected is not None:

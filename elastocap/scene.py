@@ -591,7 +591,6 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
     if not isinstance(description, str):
         raise SceneError("description", description, "expected a string")
     experiment = None
-    spreading = None
     raw_rod = data.get("rod")
     raw_drop = data.get("drop")
     raw_spr = data.get("spreading")
@@ -651,68 +650,8 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
     if raw_drop is None:
         raise SceneError("drop", None, "missing: a scene needs [drop] (or [experiment])")
     try:
-        rod = Rod(**_read_section(raw_rod, "rod", ROD_KEYS))
-        # the limit itself is allowed whatever the rounding of the product (0.1 x 4.6 < 0.46)
-        if rod.thickness > MAX_THICKNESS_OVER_LENGTH * rod.length * (1.0 + 1e-12):
-            raise SceneError("rod.thickness", rod.thickness,
-                             f"expected 0 <= thickness <= {MAX_THICKNESS_OVER_LENGTH:g} x "
-                             f"rod.length = {MAX_THICKNESS_OVER_LENGTH * rod.length:g} (a slender "
-                             "rod; 0 = no self-contact)")
-        dsec = _read_section(raw_drop, "drop", DROP_KEYS)
-        L = rod.length
-        if dsec["center"] is not None and dsec["distance_from_end"] is not None:
-            raise SceneError(
-                "drop.center",
-                dsec["center"],
-                "give either drop.center or drop.distance_from_end, not both",
-            )
-        if dsec["distance_from_end"] is not None:
-            center = L - dsec["distance_from_end"]
-            pos_key, pos_val = "drop.distance_from_end", dsec["distance_from_end"]
-        elif dsec["center"] is not None:
-            center = dsec["center"]
-            pos_key, pos_val = "drop.center", center
-        else:
-            center = 0.5 * L
-            pos_key, pos_val = "drop.center", center
-        delta = dsec["wetted_length"]
-        if delta > L:
-            raise SceneError(
-                "drop.wetted_length", delta, f"expected 0 < wetted_length <= rod.length = {L}"
-            )
-        s1, s2 = center - 0.5 * delta, center + 0.5 * delta
-        # 1e-12 L: a wet interval that ends at the rod's end up to round-off is accepted
-        tol = 1e-12 * L
-        if s1 < -tol or s2 > L + tol:
-            raise SceneError(
-                pos_key,
-                pos_val,
-                f"the wet interval [S1, S2] = [{s1:.6g}, {s2:.6g}] must lie inside "
-                f"[0, rod.length = {L}]",
-            )
-        events = _events(raw_drop.get("events", []), L)
-        for i, ev in enumerate(events):
-            n1 = s1 if ev.s1 is None else ev.s1
-            n2 = s2 if ev.s2 is None else ev.s2
-            if not n1 < n2:
-                raise SceneError(
-                    f"drop.events[{i}]", vars(ev),
-                    f"needs s1 < s2 after the event (s1={n1}, s2={n2})"
-                )
-            s1, s2 = n1, n2
-        drop = Drop(dsec["area"], delta, center, dsec["line_tension"], events,
-                    dsec["interface_contact"])
-        effects = Effects(**_read_section(data_effects, "effects", EFFECTS_KEYS))
-        nsec = _read_section(data.get("numerics", {}), "numerics", NUMERICS_KEYS)
-        for k, (lo, hi, allowed) in NUMERICS_RANGES.items():
-            v = nsec[k]
-            if k == "cheb_points" and v == 0:
-                continue
-            if not lo <= v <= hi:
-                raise SceneError(f"numerics.{k}", v, f"expected {allowed}")
-        numerics = Numerics(**nsec)
-        if raw_spr is not None:
-            spreading = Spreading(**_read_section(raw_spr, "spreading", SPREADING_KEYS))
+        rod, drop, effects, numerics, spreading = _sections(raw_rod, raw_drop, raw_spr,
+                                                            data_effects, data)
     except SceneError as err:
         if experiment is None:
             raise
@@ -728,6 +667,75 @@ def build_scene(data: dict, name: str = "scene") -> Scene:
         description=description,
         data=data,
     )
+
+
+def _sections(raw_rod, raw_drop, raw_spr, data_effects, data):
+    """The scene's rod, drop, effects, numerics and spreading law from their raw tables,
+    each checked (a SceneError names the key)."""
+    spreading = None
+    rod = Rod(**_read_section(raw_rod, "rod", ROD_KEYS))
+    # the limit itself is allowed whatever the rounding of the product (0.1 x 4.6 < 0.46)
+    if rod.thickness > MAX_THICKNESS_OVER_LENGTH * rod.length * (1.0 + 1e-12):
+        raise SceneError("rod.thickness", rod.thickness,
+                         f"expected 0 <= thickness <= {MAX_THICKNESS_OVER_LENGTH:g} x "
+                         f"rod.length = {MAX_THICKNESS_OVER_LENGTH * rod.length:g} (a slender "
+                         "rod; 0 = no self-contact)")
+    dsec = _read_section(raw_drop, "drop", DROP_KEYS)
+    L = rod.length
+    if dsec["center"] is not None and dsec["distance_from_end"] is not None:
+        raise SceneError(
+            "drop.center",
+            dsec["center"],
+            "give either drop.center or drop.distance_from_end, not both",
+        )
+    if dsec["distance_from_end"] is not None:
+        center = L - dsec["distance_from_end"]
+        pos_key, pos_val = "drop.distance_from_end", dsec["distance_from_end"]
+    elif dsec["center"] is not None:
+        center = dsec["center"]
+        pos_key, pos_val = "drop.center", center
+    else:
+        center = 0.5 * L
+        pos_key, pos_val = "drop.center", center
+    delta = dsec["wetted_length"]
+    if delta > L:
+        raise SceneError(
+            "drop.wetted_length", delta, f"expected 0 < wetted_length <= rod.length = {L}"
+        )
+    s1, s2 = center - 0.5 * delta, center + 0.5 * delta
+    # 1e-12 L: a wet interval that ends at the rod's end up to round-off is accepted
+    tol = 1e-12 * L
+    if s1 < -tol or s2 > L + tol:
+        raise SceneError(
+            pos_key,
+            pos_val,
+            f"the wet interval [S1, S2] = [{s1:.6g}, {s2:.6g}] must lie inside "
+            f"[0, rod.length = {L}]",
+        )
+    events = _events(raw_drop.get("events", []), L)
+    for i, ev in enumerate(events):
+        n1 = s1 if ev.s1 is None else ev.s1
+        n2 = s2 if ev.s2 is None else ev.s2
+        if not n1 < n2:
+            raise SceneError(
+                f"drop.events[{i}]", vars(ev),
+                f"needs s1 < s2 after the event (s1={n1}, s2={n2})"
+            )
+        s1, s2 = n1, n2
+    drop = Drop(dsec["area"], delta, center, dsec["line_tension"], events,
+                dsec["interface_contact"])
+    effects = Effects(**_read_section(data_effects, "effects", EFFECTS_KEYS))
+    nsec = _read_section(data.get("numerics", {}), "numerics", NUMERICS_KEYS)
+    for k, (lo, hi, allowed) in NUMERICS_RANGES.items():
+        v = nsec[k]
+        if k == "cheb_points" and v == 0:
+            continue
+        if not lo <= v <= hi:
+            raise SceneError(f"numerics.{k}", v, f"expected {allowed}")
+    numerics = Numerics(**nsec)
+    if raw_spr is not None:
+        spreading = Spreading(**_read_section(raw_spr, "spreading", SPREADING_KEYS))
+    return rod, drop, effects, numerics, spreading
 
 
 # The scene keys an [experiment] derives, and the experiment inputs each one follows from

@@ -184,15 +184,16 @@ def usable_cores() -> int:
 def check_workers(workers) -> int:
     """``workers`` as an integer from 1 to ``WORKERS_PER_CORE_MAX`` per usable core
     (None = one per core)."""
+    cores = usable_cores()
     if workers is None:
-        return usable_cores()
-    top = WORKERS_PER_CORE_MAX * usable_cores()
+        return cores
+    top = WORKERS_PER_CORE_MAX * cores
     # any integer type (numpy's too), as a plain int
     if (isinstance(workers, bool) or not isinstance(workers, numbers.Integral)
             or not 1 <= workers <= top):
         raise ValueError(
             f"--workers: got {workers!r}; expected an integer from 1 to {top} "
-            f"({WORKERS_PER_CORE_MAX} per core of the {usable_cores()} this process may use: "
+            f"({WORKERS_PER_CORE_MAX} per core of the {cores} this process may use: "
             "each worker is a process of its own, and more than one per core only share them)")
     return int(workers)
 

@@ -4,11 +4,13 @@ without re-running, non-monotonic lines detected, failed runs reported and retri
 
 import io
 import json
+import shutil
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
+import sweep_fakes as fk
 
 from elastocap.scene import load_scene
 from elastocap.sweep import TextProgress, classify_line, run_sweep
@@ -341,10 +343,6 @@ def test_a_bare_store_redraws_the_same_diagram_without_running(tmp_path, pool, m
     assert (tmp_path / "re" / "phase-diagram.png").stat().st_size > 1000
     assert main(["plot", "missing.sqlite"]) == 2
     # a damaged row is refused as a sweep.json's would be, and nothing is drawn
-    import shutil
-
-    import sweep_fakes as fk
-
     shutil.copy(store, tmp_path / "d.sqlite")
     fk.execute_sql(tmp_path / "d.sqlite", "UPDATE runs SET final_measure = 1e999 WHERE id = "
                    "(SELECT MIN(id) FROM runs)")
