@@ -374,6 +374,13 @@ def cmd_impact(args) -> int:
             print(f"  at rest at t = {r['t_end']:.4g} on a turn of a slow swing (half-period "
                   f"{r['swing_half_period']:.3g}): run again with a rest test of kinetic "
                   f"energy {r['rest_kinetic']:.3g} for {r['rest_time']:.4g}")
+        if res.self_contact:  # rod.thickness > 0
+            c = res.self_contact
+            made = res.simulation.stats.get("steps_all_runs", res.steps)
+            print(f"  self-contact: touching in {c['steps']} of {made} steps, up to "
+                  f"{c['max_active']} "
+                  f"contacts at once, gap error {c['gap_error']:.2g} of the thickness, "
+                  f"{c['failures']} failures")
         if res.rod_crossing_time is not None or res.interface_crossing_time is not None:
             print(
                 f"  flagged: rod crosses itself at t = {res.rod_crossing_time}, interface "

@@ -187,6 +187,7 @@ class ImpactResult:
     settings: dict
     interface_contact: str = "ignore"
     interface_touches: list = field(default_factory=list)
+    self_contact: dict = field(default_factory=dict)
     simulation: object = field(repr=False, default=None)
     measure_history: np.ndarray = field(repr=False, default=None)
 
@@ -898,9 +899,30 @@ class _Frames:
     energies: dict
 
 
+#: Self-contact entries of ``SimulationResult.stats``
+#: (:func:`dynamics.contact.contact_stats`): counts, summed over the runs of an impact,
+#: and extremes, maximised.
+CONTACT_STATS_SUMMED = ("self_contact_steps", "self_contact_rounds", "self_contact_rebuilds",
+                        "self_contact_band_solves", "self_contact_dense_solves",
+                        "self_contact_velocity_unsettled", "self_contact_failures")
+CONTACT_STATS_MAX = ("self_contact_max_active", "self_contact_gap_error",
+                     "self_contact_penetration")
+
+
+def self_contact_summary(stats) -> dict:
+    """What the rod's self-contact did in a run, from its ``stats``: the
+    ``self_contact_*`` entries without the prefix (``steps``, ``max_active``,
+    ``gap_error``, ``failures``, ...; see :func:`dynamics.contact.contact_stats`), or
+    ``{}`` when the rod has no thickness (no self-contact effect)."""
+    p = "self_contact_"
+    return {k[len(p):]: v for k, v in stats.items() if k.startswith(p)}
+
+
 def _stitch(keep, fired, runs, dt, last) -> SimulationResult:
     """One SimulationResult from the kept pieces, ending in the final state of the run
-    ``last``; costs summed over every run made."""
+    ``last``; costs summed over every run made, as are the self-contact's counts (the
+    located touches re-run parts of the trajectory: they count against ``steps_all_runs``),
+    its extremes the largest of any run."""
     times, pos, ens = [], [], {}
     for piece, first in keep:
         a = 0 if first else 1
@@ -913,6 +935,16 @@ def _stitch(keep, fired, runs, dt, last) -> SimulationResult:
         stats[key] = sum(r.stats[key] for r in runs)
     for key in ("max_halvings", "iterations_max", "constraint_error"):
         stats[key] = max(r.stats[key] for r in runs)
+    for key in CONTACT_STATS_SUMMED:
+        if key in stats:
+            stats[key] = sum(r.stats[key] for r in runs)
+    for key in CONTACT_STATS_MAX:
+        if key in stats:
+            stats[key] = max(r.stats[key] for r in runs)
+    failures = [r.stats["self_contact_failure"] for r in runs
+                if r.stats.get("self_contact_failure")]
+    if failures:
+        stats["self_contact_failure"] = failures[-1]
     stats["steps"] = int(round(last.t_final / dt))
     stats["runs"] = len(runs)
     stats["steps_all_runs"] = int(sum(r.stats["steps"] for r in runs))
@@ -1168,6 +1200,7 @@ def _classify(scene, st, best, attempts, scale, t0, s_nodes, cap_frames,
         },
         interface_contact=scene.drop.interface_contact,
         interface_touches=best.touches,
+        self_contact=self_contact_summary(sim.stats),
         simulation=sim,
         measure_history=measures,
     )

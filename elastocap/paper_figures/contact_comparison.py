@@ -168,8 +168,8 @@ def run_record(scene) -> dict:
         # in which this stays above L / 10 is the same run with any admissible thickness
         "gap_min_frames_max_thickness": min(closest_approach(p, MAX_THICKNESS_OVER_LENGTH * L, L)
                                             for p in sim.positions),
-        "self_contact_steps": sim.stats.get("self_contact_steps", 0),
-        "self_contact_gap_error": sim.stats.get("self_contact_gap_error"),
+        "self_contact_steps": res.self_contact.get("steps", 0),
+        "self_contact_gap_error": res.self_contact.get("gap_error"),
         "n_edges": res.settings.get("n_edges"), "dt": res.settings.get("dt"),
         "dt_retries": res.settings.get("dt_retries"),
         "steps": res.steps, "run_time_s": res.run_time_s,

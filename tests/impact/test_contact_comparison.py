@@ -82,3 +82,39 @@ def test_run_cache_round_trips(tmp_path, monkeypatch):
     again = cc.RunCache(tmp_path / "runs.jsonl").run(sc)
     assert again == json.loads(json.dumps(first))
     assert again["outcome"] == "open" and len(again["final_positions"]) == 51
+
+
+def test_impact_reports_what_self_contact_did(pair, tmp_path, capsys):
+    """``elastocap impact`` reports the contact's statistics (JSON ``self_contact``, and a
+    line of text), those of the run the figure records; none without a thickness; under
+    the "wet" interface policy (several runs stitched), the counts of every run made."""
+    from elastocap.cli import main
+
+    free, touch = pair
+    d = cc.THICKNESS["supp-fig5"]
+    args = ["impact", "supp-fig5", "--set", "drop.wetted_length=4.0", "--set",
+            "numerics.n_edges=50", "--progress", "none", "--out", str(tmp_path)]
+    assert main([*args, "--set", f"rod.thickness={d}", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    c = rep["self_contact"]
+    assert c["steps"] == touch["self_contact_steps"] > 0
+    assert c["gap_error"] == touch["self_contact_gap_error"] < 1e-6
+    assert c["max_active"] >= 1 and c["failures"] == 0 and c["failure"] == ""
+    assert main([*args, "--set", f"rod.thickness={d}"]) == 0
+    text = capsys.readouterr().out
+    assert f"self-contact: touching in {c['steps']} of {rep['steps']} steps" in text
+    assert main([*args, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["self_contact"] == {}
+    assert "self-contact" not in (main(args), capsys.readouterr().out)[1]
+    # "wet": the touch is located by re-running parts of the trajectory, and the jump
+    # restarts it; the contact's counts are those of every run made
+    from elastocap.impact import run_impact
+
+    wet = run_impact(load_scene("supp-fig5", {"drop.wetted_length": 4.0,
+                                              "numerics.n_edges": 50, "rod.thickness": d,
+                                              "drop.interface_contact": "wet"}))
+    stats = wet.simulation.stats
+    assert stats["runs"] > 1 and wet.interface_touches
+    assert wet.self_contact["steps"] == stats["self_contact_steps"]
+    assert 0 < wet.self_contact["steps"] <= stats["steps_all_runs"]
+    assert wet.self_contact["failures"] == 0
