@@ -381,12 +381,16 @@ def cmd_impact(args) -> int:
                   f"{c['max_active']} "
                   f"contacts at once, gap error {c['gap_error']:.2g} of the thickness, "
                   f"{c['failures']} failures")
-        if res.rod_crossing_time is not None or res.interface_crossing_time is not None:
-            print(
-                f"  flagged: rod crosses itself at t = {res.rod_crossing_time}, interface "
-                f"crosses the rod at t = {res.interface_crossing_time} (the model has no "
-                "contact between them)"
-            )
+        crossed = []
+        if res.rod_crossing_time is not None:  # only without a thickness
+            crossed.append(f"the rod crosses itself at t = {res.rod_crossing_time:.6g} "
+                           "(without rod.thickness the model has no self-contact)")
+        if res.interface_crossing_time is not None:
+            crossed.append(f"the drop's interface crosses the rod at t = "
+                           f"{res.interface_crossing_time:.6g} (drop.interface_contact = "
+                           f"{res.interface_contact})")
+        if crossed:
+            print("  flagged: " + "; ".join(crossed))
         for f in rep.get("files", []):
             print(f"  wrote {f}")
     if res.interface_touches:  # the drop's interface met the rod (drop.interface_contact)
