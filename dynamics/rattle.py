@@ -52,7 +52,8 @@ cost the stepper pays because it uses numba's public API only.  The solvers
 and the bending kernel are called with the flat views (``shake_flat``,
 ``velocity_projection_flat``, ``bending_force_add_flat``): a reshape per call is a C call.
 Not chosen: kernels called through numba's first-class functions (indirect calls: no
-shorter compile, measured in docs/guide/time-stepping.md, "Compile cost").  Cold compile of one stepper ~7-30 s, warm load ~0.5 s.
+shorter compile, measured in docs/guide/time-stepping.md, "Compile cost").  Cold compile
+of one stepper ~7-30 s, warm load ~0.5 s.
 
 Where the time of an impact run goes (measured with cycle counters around each
 part of the step on supp-fig5 and fig3-strip): SHAKE 42%, the velocity projection 18%,
