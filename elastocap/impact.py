@@ -899,14 +899,36 @@ class _Frames:
     energies: dict
 
 
-#: Self-contact entries of ``SimulationResult.stats``
-#: (:func:`dynamics.contact.contact_stats`): counts, summed over the runs of an impact,
-#: and extremes, maximised.
-CONTACT_STATS_SUMMED = ("self_contact_steps", "self_contact_rounds", "self_contact_rebuilds",
-                        "self_contact_band_solves", "self_contact_dense_solves",
-                        "self_contact_velocity_unsettled", "self_contact_failures")
-CONTACT_STATS_MAX = ("self_contact_max_active", "self_contact_gap_error",
-                     "self_contact_penetration")
+#: Entries of ``SimulationResult.stats`` that an impact made of several runs sums over them
+#: (costs, and the self-contact's counts: :func:`dynamics.contact.contact_stats`) and that
+#: it takes the largest of (extremes); an entry a run lacks (no self-contact) is skipped.
+STATS_SUMMED = ("rejected_steps", "contact_rounds", "compile_time", "run_time",
+                "self_contact_steps", "self_contact_rounds", "self_contact_rebuilds",
+                "self_contact_band_solves", "self_contact_dense_solves",
+                "self_contact_velocity_unsettled", "self_contact_failures")
+STATS_MAX = ("max_halvings", "iterations_max", "constraint_error", "self_contact_max_active",
+             "self_contact_gap_error", "self_contact_penetration")
+
+
+def combined_stats(runs, last) -> dict:
+    """The ``stats`` of an impact made of the runs ``runs`` (their ``stats`` mappings, in
+    the order made) that ends in the final state of the run ``last`` (one of them, not
+    always the last made): ``last``'s, with :data:`STATS_SUMMED` summed over every run,
+    :data:`STATS_MAX` the largest of any, ``self_contact_failure`` the last reason given,
+    and ``runs`` and ``steps_all_runs`` (the steps of every run, re-runs included)."""
+    stats = dict(last)
+    for key in STATS_SUMMED:
+        if key in stats:
+            stats[key] = sum(r[key] for r in runs)
+    for key in STATS_MAX:
+        if key in stats:
+            stats[key] = max(r[key] for r in runs)
+    failures = [r["self_contact_failure"] for r in runs if r.get("self_contact_failure")]
+    if failures:
+        stats["self_contact_failure"] = failures[-1]
+    stats["runs"] = len(runs)
+    stats["steps_all_runs"] = int(sum(r["steps"] for r in runs))
+    return stats
 
 
 def self_contact_summary(stats) -> dict:
@@ -920,9 +942,8 @@ def self_contact_summary(stats) -> dict:
 
 def _stitch(keep, fired, runs, dt, last) -> SimulationResult:
     """One SimulationResult from the kept pieces, ending in the final state of the run
-    ``last``; costs summed over every run made, as are the self-contact's counts (the
-    located touches re-run parts of the trajectory: they count against ``steps_all_runs``),
-    its extremes the largest of any run."""
+    ``last``; its stats those of every run made (:func:`combined_stats`: the located
+    touches re-run parts of the trajectory, so the counts go with ``steps_all_runs``)."""
     times, pos, ens = [], [], {}
     for piece, first in keep:
         a = 0 if first else 1
@@ -930,24 +951,8 @@ def _stitch(keep, fired, runs, dt, last) -> SimulationResult:
         pos.append(piece.positions[a:])
         for key, v in piece.energies.items():
             ens.setdefault(key, []).append(v[a:])
-    stats = dict(last.stats)
-    for key in ("rejected_steps", "contact_rounds", "compile_time", "run_time"):
-        stats[key] = sum(r.stats[key] for r in runs)
-    for key in ("max_halvings", "iterations_max", "constraint_error"):
-        stats[key] = max(r.stats[key] for r in runs)
-    for key in CONTACT_STATS_SUMMED:
-        if key in stats:
-            stats[key] = sum(r.stats[key] for r in runs)
-    for key in CONTACT_STATS_MAX:
-        if key in stats:
-            stats[key] = max(r.stats[key] for r in runs)
-    failures = [r.stats["self_contact_failure"] for r in runs
-                if r.stats.get("self_contact_failure")]
-    if failures:
-        stats["self_contact_failure"] = failures[-1]
+    stats = combined_stats([r.stats for r in runs], last.stats)
     stats["steps"] = int(round(last.t_final / dt))
-    stats["runs"] = len(runs)
-    stats["steps_all_runs"] = int(sum(r.stats["steps"] for r in runs))
     return SimulationResult(
         times=np.concatenate(times), positions=np.concatenate(pos),
         velocities=last.velocities, energies={k: np.concatenate(v) for k, v in ens.items()},

@@ -123,6 +123,39 @@ def test_impact_reports_what_self_contact_did(pair, tmp_path, capsys):
                                               "drop.interface_contact": "wet"}))
     stats = wet.simulation.stats
     assert stats["runs"] > 1 and wet.interface_touches
-    assert wet.self_contact["steps"] == stats["self_contact_steps"]
     assert 0 < wet.self_contact["steps"] <= stats["steps_all_runs"]
     assert wet.self_contact["failures"] == 0
+
+
+def test_runs_combine_counts_summed_extremes_largest_and_the_final_runs_rest():
+    """An impact of several runs: counts and costs summed over every run, extremes the
+    largest, the last failure reason, the rest from the run whose state ends the impact
+    (not always the last made); entries no run has stay absent."""
+    from elastocap.impact import combined_stats
+
+    def run(steps, touching, most, gap, failure, force):
+        return {"steps": steps, "rejected_steps": 1, "contact_rounds": 2, "compile_time": 0.5,
+                "run_time": 1.0, "max_halvings": 0, "iterations_max": steps % 5,
+                "constraint_error": 1e-15 * steps, "iterations_mean": 2.0 + steps,
+                "self_contact_steps": touching, "self_contact_rounds": touching,
+                "self_contact_rebuilds": 3, "self_contact_band_solves": 0,
+                "self_contact_dense_solves": touching, "self_contact_velocity_unsettled": 0,
+                "self_contact_failures": int(bool(failure)), "self_contact_max_active": most,
+                "self_contact_gap_error": gap, "self_contact_penetration": 0.1 * most,
+                "self_contact_force": force, "self_contact_failure": failure}
+
+    a, b, c = run(100, 40, 3, 1e-9, "", 1.0), run(7, 0, 0, 0.0, "diverged", 2.0), \
+        run(50, 5, 1, 1e-12, "", 3.0)
+    s = combined_stats([a, b, c], b)
+    assert (s["self_contact_steps"], s["self_contact_dense_solves"]) == (45, 45)
+    assert (s["self_contact_rebuilds"], s["self_contact_failures"]) == (9, 1)
+    assert (s["rejected_steps"], s["contact_rounds"], s["run_time"]) == (3, 6, 3.0)
+    assert (s["self_contact_max_active"], s["self_contact_gap_error"]) == (3, 1e-9)
+    assert s["constraint_error"] == 1e-13 and s["iterations_max"] == 2
+    assert s["self_contact_failure"] == "diverged"
+    # the final run's own: its last step's force, its mean iterations, its steps
+    assert (s["self_contact_force"], s["iterations_mean"], s["steps"]) == (2.0, 9.0, 7)
+    assert (s["runs"], s["steps_all_runs"]) == (3, 157)
+    plain = [{k: v for k, v in r.items() if not k.startswith("self_contact")}
+             for r in (a, c)]
+    assert not any(k.startswith("self_contact") for k in combined_stats(plain, plain[1]))

@@ -139,7 +139,7 @@ def test_any_dotdot_path_makes_its_target_and_only_the_folders_on_the_way(parts)
         (root / "X").mkdir()
         target = os.path.normpath(os.path.join("X", *parts))
         assume(not target.startswith(".."))
-        before = {p for p in root.rglob("*")}
+        before = set(root.rglob("*"))
         f = OutputFolder(root / "X" / os.path.join(*parts), "branches")
         f.write_text("branches.json", "{}")
         assert (root / target / "branches.json").is_file()
