@@ -96,7 +96,13 @@ import numpy as np
 
 from .cache import dependency_digest, is_compiled, load_module
 from .codegen import compile_estimate, kernel_ref, render, stepper_depends
-from .contact import check_self_contact, contact_failure, contact_stats, new_contact_work
+from .contact import (
+    NO_CONTACT_WORK,
+    check_self_contact,
+    contact_failure,
+    contact_stats,
+    new_contact_work,
+)
 from .effects import KINDS, STIFFNESS_BAND, STIFFNESS_RANK, is_ground, is_self_contact
 from .rattle import stable_dt
 
@@ -1729,7 +1735,7 @@ class Run:
                     if e.kind == "force" and getattr(e, "stiffness", None) is not None)
         ground = [e for e in effects if e.kind == "constraint" and is_ground(e)]
         self.contact = any(is_self_contact(e) for e in effects)
-        self.ck = new_contact_work(edge_len if self.contact else np.ones(1))
+        self.ck = new_contact_work(edge_len) if self.contact else NO_CONTACT_WORK
         R = STIFFNESS_RANK * hooks
         nk = n if hooks else 0
         # columns for the stiffness and for the rows of contact changes

@@ -77,7 +77,13 @@ from .bending import BENDING_WORK_ROWS
 from .cache import is_compiled, load_module
 from .codegen import compile_estimate, kernel_ref, render, stepper_depends
 from .constraints import SHAKE_FINAL, new_work
-from .contact import check_self_contact, contact_failure, contact_stats, new_contact_work
+from .contact import (
+    NO_CONTACT_WORK,
+    check_self_contact,
+    contact_failure,
+    contact_stats,
+    new_contact_work,
+)
 from .effects import KINDS, is_ground, is_self_contact
 from .rod import kinetic_energy
 
@@ -589,8 +595,8 @@ class Run:
         self.edge_len = rod.edge_len.copy()
         self.energy = np.zeros(self.n_energies)
         self.contact = any(is_self_contact(e) for e in effects)
-        # the self-contact's work arrays (a token of the same types without one)
-        self.ck = new_contact_work(self.edge_len if self.contact else np.ones(1))
+        # the self-contact's work arrays (NO_CONTACT_WORK without it: its code is compiled out)
+        self.ck = new_contact_work(self.edge_len) if self.contact else NO_CONTACT_WORK
         # diag: [0] largest constraint error, [1] contact rounds, [2] most iterations,
         # [3] iteration sum, [4] failing edge/node, [5] its residual, [6] rejected steps,
         # [7] deepest halving, [8] the failing projection was the self-contact's,

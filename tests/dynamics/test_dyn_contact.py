@@ -276,12 +276,20 @@ def test_loaded_contacts_end_each_step_without_approaching(method):
 
 def test_without_the_effect_no_contact_code():
     from dynamics import midpoint, rattle
+    from dynamics.contact import NO_CONTACT_WORK
 
     for mod in (rattle.compile_stepper((Gravity(1.0),)),
                 midpoint.compile_stepper((Gravity(1.0),))):
         assert mod.HAS_CONTACT is False
     for mod in (rattle.compile_stepper((Gravity(1.0), SelfContact(0.1))),):
         assert mod.HAS_CONTACT is True
+    # nor its 30 work arrays in the stepper's signatures (they cost a contact-free
+    # stepper's compile about 1 s); a run is set up without compiling
+    rod = Rod.straight(10, 1.0)
+    for method in (rattle, midpoint):
+        assert method.Run(rod, (Gravity(1.0),), 1e-3, 0.0, None).ck is NO_CONTACT_WORK
+        with_contact = method.Run(rod, (Gravity(1.0), SelfContact(0.1)), 1e-3, 0.0, None)
+        assert len(with_contact.ck.pairs) > 0
 
 
 #: A child with an empty numba cache runs one step of colliding arms with each method and
