@@ -187,6 +187,8 @@ def _print_text(rep: dict, files: list[str]) -> None:
         f"{c['disagreements']} where the criteria disagree; {rep['wall_time_s']:.1f} s on "
         f"{rep['executor']}; resolution {res['n_edges']} edges, dt {res['dt']:.4g}"
     )
+    if c.get("self_contact") is not None:
+        print(f"  the rod touched itself in {c['self_contact']} of {c['runs']} runs")
     for s in rep["skipped"][:5]:
         print(
             f"  skipped x = {s['x_over_leg']:.6g}"

@@ -1085,14 +1085,19 @@ def run_counts(runs, computed: int, cached: int, skipped: int, failed: int,
                verification=None) -> dict:
     """The ``counts`` of a sweep report: runs, how many were computed or taken from the
     store, skipped, failed, undecided, each outcome, the runs both criteria decide
-    differently (an undecided run is undecided under both) and the verification verdicts."""
+    differently (an undecided run is undecided under both), the runs in which the rod
+    touched itself (``self_contact``; None when no run had a thickness) and the
+    verification verdicts."""
     outcomes = {o: sum(r["outcome"] == o for r in runs) for o in OUTCOMES}
+    with_thickness = [r for r in runs if r.get("contact_steps") is not None]
     return {
         "runs": len(runs), "computed": computed, "cached": cached, "skipped": skipped,
         "failed": failed, "undecided": outcomes[UND], "outcomes": outcomes,
         "disagreements": sum(r["outcome"] != r["companion_outcome"]
                              and UND not in (r["outcome"], r["companion_outcome"])
                              for r in runs),
+        "self_contact": (sum(r["contact_steps"] > 0 for r in with_thickness)
+                         if with_thickness else None),
         "verification": verification,
     }
 

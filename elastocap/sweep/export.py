@@ -87,13 +87,18 @@ def load(store, positions: bool = False):
     names = ["id", *(n for n, _ in COLUMNS if positions or n != "final_positions")]
     con = ResultStore._open_readonly(path)
     try:
-        cur = con.execute(f"SELECT {', '.join(names)} FROM runs ORDER BY id")
+        # a store of an older layout lacks the newer columns: read as missing values
+        have = {r[1] for r in con.execute("PRAGMA table_info(runs)")}
+        cols = [n if n in have else f"NULL AS {n}" for n in names]
+        cur = con.execute(f"SELECT {', '.join(cols)} FROM runs ORDER BY id")
         rows = cur.fetchall()
     except sqlite3.DatabaseError as err:  # an empty file, or another database
         raise StoreError(f"store {str(path)!r}: not a sweep store ({err})") from None
     finally:
         con.close()
     df = pd.DataFrame.from_records(rows, columns=names)
+    for c in ("contact_steps", "contact_max_active"):  # missing without a thickness
+        df[c] = df[c].astype("Int64")
     bad = df[~df["outcome"].isin(OUTCOMES)]
     if len(bad):  # a store sweeps write never holds these: a damaged or edited file
         raise StoreError(f"store {str(path)!r}: run id {int(bad['id'].iloc[0])} has outcome "

@@ -50,8 +50,9 @@ import numpy as np
 
 __all__ = ["COLUMNS", "OUTCOMES", "SCHEMA_VERSION", "ResultStore", "StoreError"]
 
-#: Bump when the table layout changes; a store with another version is refused.
-SCHEMA_VERSION = 2
+#: Bump when the table layout changes; a store with another version is refused, except
+#: those :data:`MIGRATIONS` can bring up to date (done when a sweep opens it for writing).
+SCHEMA_VERSION = 3
 #: The outcome classes of a run ("undecided" carries a ``reason``).
 OUTCOMES = ("open", "encapsulated", "undecided")
 #: Seconds a writer waits for the write lock held by another sweep before failing: one
@@ -86,6 +87,11 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("rod_crossing_time", "REAL"),
     ("interface_crossing_time", "REAL"),
     ("decided_after_crossing", "INTEGER"),
+    # what the rod's self-contact did (NULL without a thickness, or in a row of version 2):
+    # steps with contacts, the most at once, the largest gap error in thicknesses
+    ("contact_steps", "INTEGER"),
+    ("contact_max_active", "INTEGER"),
+    ("contact_gap_error", "REAL"),
     ("final_positions", "BLOB"),
     ("settings_json", "TEXT"),
     ("host", "TEXT"),
@@ -113,6 +119,25 @@ _KEY_WHERE = " AND ".join(f"{k} = ?" for k in _KEY)
 
 class StoreError(ValueError):
     """The file is not a store this version can use (the message says what to do)."""
+
+
+#: Schema version -> the statements that bring a store of that version to the next one.
+MIGRATIONS: dict[int, tuple[str, ...]] = {
+    2: ("ALTER TABLE runs ADD COLUMN contact_steps INTEGER",
+        "ALTER TABLE runs ADD COLUMN contact_max_active INTEGER",
+        "ALTER TABLE runs ADD COLUMN contact_gap_error REAL"),
+}
+
+
+def _readable_version(version) -> bool:
+    """A store of this recorded version can be read (and is migrated when written)."""
+    try:
+        v = int(version)
+    except (TypeError, ValueError):
+        return False
+    while v in MIGRATIONS:
+        v += 1
+    return v == SCHEMA_VERSION
 
 
 def _schema_sql() -> str:
@@ -277,7 +302,7 @@ class ResultStore:
                 if "meta" in tables:
                     row = con.execute(
                         "SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-                    if row is None or row[0] != str(SCHEMA_VERSION):
+                    if row is None or not _readable_version(row[0]):
                         raise StoreError(
                             f"store {str(path)!r}: schema version {row and row[0]}, this "
                             f"elastocap writes version {SCHEMA_VERSION}; give a new file")
@@ -313,17 +338,29 @@ class ResultStore:
             )
         con.execute("PRAGMA synchronous = FULL")
         with self._transaction():
+            tables = {r[0] for r in con.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+            row = (con.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+                   if "meta" in tables else None)
+            if row is not None and row[0] != str(SCHEMA_VERSION):
+                if not _readable_version(row[0]):
+                    raise StoreError(
+                        f"store {str(self.path)!r}: schema version {row[0]}, this elastocap "
+                        f"writes version {SCHEMA_VERSION}; give a new file"
+                    )
+                # an older layout: brought up to date in this transaction (all or nothing)
+                v = int(row[0])
+                while v in MIGRATIONS:
+                    for stmt in MIGRATIONS[v]:
+                        con.execute(stmt)
+                    v += 1
+                con.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
+                            (str(SCHEMA_VERSION),))
             for stmt in _schema_sql().split(";\n"):
                 if stmt.strip():
                     con.execute(stmt)
-            row = con.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
             if row is None:
                 con.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
-            elif row[0] != str(SCHEMA_VERSION):
-                raise StoreError(
-                    f"store {str(self.path)!r}: schema version {row[0]}, this elastocap "
-                    f"writes version {SCHEMA_VERSION}; give a new file"
-                )
 
     @contextlib.contextmanager
     def _transaction(self):
@@ -377,7 +414,8 @@ class ResultStore:
         vals["created_utc"] = vals.get("created_utc") or _utc_now()
         if vals.get("decided_after_crossing") is not None:
             vals["decided_after_crossing"] = int(bool(vals["decided_after_crossing"]))
-        for k in ("final_measure", "companion_measure", "t_end", "wall_time_s"):
+        for k in ("final_measure", "companion_measure", "t_end", "wall_time_s",
+                  "contact_gap_error"):
             v = vals.get(k)
             if v is not None and not math.isfinite(float(v)):
                 vals[k] = None  # SQLite stores NaN as NULL anyway; say so explicitly

@@ -127,6 +127,24 @@ def test_impact_reports_what_self_contact_did(pair, tmp_path, capsys):
     assert wet.self_contact["failures"] == 0
 
 
+def test_a_sweep_row_records_what_self_contact_did(pair):
+    """The sweep's run function stores the contact counts of ``ImpactResult.self_contact``
+    (those of the figure's record for the same impact), and none without a thickness."""
+    from elastocap.sweep.tasks import run_impact_task
+
+    free, touch = pair
+    rows = {}
+    for name, d in (("free", 0.0), ("touch", cc.THICKNESS["supp-fig5"])):
+        scene = _scene(d)
+        rows[name] = run_impact_task("supp-fig5", scene.to_json())
+    r = rows["touch"]
+    assert r["contact_steps"] == touch["self_contact_steps"] > 0
+    assert r["contact_gap_error"] == touch["self_contact_gap_error"] < 1e-6
+    assert r["contact_max_active"] >= 1
+    assert rows["free"]["contact_steps"] is None
+    assert rows["free"]["contact_max_active"] is rows["free"]["contact_gap_error"] is None
+
+
 def test_runs_combine_counts_summed_extremes_largest_and_the_final_runs_rest():
     """An impact of several runs: counts and costs summed over every run, extremes the
     largest, the last failure reason, the rest from the run whose state ends the impact

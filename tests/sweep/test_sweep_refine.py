@@ -164,8 +164,21 @@ def test_delta_sweep_skips_points_off_the_rod_and_reports_progress(tmp_path, poo
     rep = res.to_dict()
     assert rep["counts"] == {"runs": 3, "computed": 3, "cached": 0, "skipped": 1, "failed": 0,
                              "undecided": 0, "disagreements": 0, "verification": None,
+                             "self_contact": None,
                              "outcomes": {"open": 3, "encapsulated": 0, "undecided": 0}}
     json.dumps(rep)  # plain data
+
+
+def test_counts_say_in_how_many_runs_the_rod_touched_itself():
+    from elastocap.sweep.engine import run_counts
+
+    def row(steps):
+        return {"outcome": "open", "companion_outcome": "open", "contact_steps": steps}
+
+    assert run_counts([row(None), row(None)], 2, 0, 0, 0)["self_contact"] is None
+    # a store written before the column existed reads None; a thickness without a touch, 0
+    assert run_counts([row(0), row(12), row(None), row(3)], 4, 0, 0, 0)["self_contact"] == 2
+    assert run_counts([row(0)], 1, 0, 0, 0)["self_contact"] == 0
 
 
 def test_progress_kinds(capsys):

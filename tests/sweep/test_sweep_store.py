@@ -67,7 +67,7 @@ def test_other_schema_and_non_sqlite_files_are_refused(tmp_path):
     p = tmp_path / "s.sqlite"
     ResultStore(p).close()
     fk.execute_sql(p, "UPDATE meta SET value = '99' WHERE key = 'schema_version'")
-    with pytest.raises(StoreError, match="schema version 99, this elastocap writes version 2"):
+    with pytest.raises(StoreError, match="schema version 99, this elastocap writes version 3"):
         ResultStore(p)
     with pytest.raises(StoreError, match="schema version 99"):
         ResultStore.check(p)
@@ -83,6 +83,39 @@ def test_other_schema_and_non_sqlite_files_are_refused(tmp_path):
         ResultStore.check(other)
     ResultStore.check(tmp_path / "new.sqlite")  # a missing file is fine, and not created
     assert not (tmp_path / "new.sqlite").exists()
+
+
+def test_a_store_of_the_previous_layout_is_read_and_brought_up_to_date(tmp_path):
+    """Version 2 lacked the self-contact columns: read as missing (nothing written), and
+    added, rows kept, when a sweep opens the store to write."""
+    pd = pytest.importorskip("pandas")
+    from elastocap.sweep import load
+
+    p = tmp_path / "s.sqlite"
+    with ResultStore(p) as st:
+        st.put(_row(1))
+    for c in ("contact_steps", "contact_max_active", "contact_gap_error"):
+        fk.execute_sql(p, f"ALTER TABLE runs DROP COLUMN {c}")
+    fk.execute_sql(p, "UPDATE meta SET value = '2' WHERE key = 'schema_version'")
+    before = sorted(x.name for x in tmp_path.iterdir())
+    ResultStore.check(p)
+    df = load(p)
+    assert len(df) == 1 and df["outcome"][0] == "open"
+    assert df["contact_steps"].isna().all() and df["contact_gap_error"].isna().all()
+    assert str(df["contact_steps"].dtype) == "Int64" and isinstance(df, pd.DataFrame)
+    assert sorted(x.name for x in tmp_path.iterdir()) == before  # read-only
+    with ResultStore(p) as st:
+        (old,) = st.rows()
+        assert old["outcome"] == "open" and old["contact_steps"] is None
+        assert st.put(_row(2, contact_steps=7, contact_max_active=2, contact_gap_error=1e-15))
+        new = st.get(f"{2:064x}", "9.9", "test")
+        assert (new["contact_steps"], new["contact_max_active"]) == (7, 2)
+        version = st._con.execute(
+            "SELECT value FROM meta WHERE key = 'schema_version'").fetchone()[0]
+        assert version == "3"
+    fk.execute_sql(p, "UPDATE meta SET value = '1' WHERE key = 'schema_version'")
+    with pytest.raises(StoreError, match="schema version 1, this elastocap writes version 3"):
+        ResultStore(p)
 
 
 WRITER = textwrap.dedent(
