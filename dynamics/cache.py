@@ -35,8 +35,10 @@ One compile per stepper
     compile the same stepper.  :func:`compile_lock` holds an exclusive lock per module
     (``<module>.lock`` beside it, POSIX ``fcntl.flock``, released by the kernel when the
     holder dies) while one process compiles; the others wait, then load numba's cached
-    code.  Where ``fcntl`` is missing, or after :data:`COMPILE_LOCK_TIMEOUT` seconds,
-    a process compiles without the lock.
+    code.  Kernels that several steppers call (self-contact's) have a lock of their own,
+    taken first while numba's cache lacks them, so that processes compiling different
+    steppers at once compile those kernels once.  Where ``fcntl`` is missing, or after
+    :data:`COMPILE_LOCK_TIMEOUT` seconds, a process compiles without the lock.
 numba's own files
     numba writes the compiled code of a generated module where its cache setting says:
     under ``$NUMBA_CACHE_DIR`` when the user sets it, else in ``__pycache__`` beside the
@@ -90,6 +92,8 @@ DIGEST_CHARS = 20
 COMPILE_LOCK_TIMEOUT = 600.0
 #: Every file this module writes starts with this prefix.
 PREFIX = "_dynamics_"
+#: Name prefix of the lock files of shared kernel groups (:func:`compile_lock`).
+KERNEL_LOCK_PREFIX = "kernels-"
 
 
 class CacheError(OSError):
@@ -335,12 +339,16 @@ def _has(found, name, functions) -> bool:
 
 @contextlib.contextmanager
 def compile_lock(module, on_wait=None, timeout: float = COMPILE_LOCK_TIMEOUT):
-    """Hold the compile lock of a generated ``module`` for the ``with`` block.
+    """Hold the compile lock of a generated ``module``, or of a group of kernels that
+    several steppers share, for the ``with`` block.
 
     Parameters
     ----------
-    module : module
-        A module returned by :func:`load_module`.
+    module : module or str
+        A module returned by :func:`load_module` (its lock is ``<module>.lock`` beside
+        it), or the name of a group of shared kernels (``kernels-<name>.lock`` in the
+        cache directory). A process takes the locks of groups before a module's, so that
+        two processes never wait for each other.
     on_wait : callable, optional
         Called once, with no argument, when another process holds the lock (to say why
         this one waits).
@@ -357,7 +365,10 @@ def compile_lock(module, on_wait=None, timeout: float = COMPILE_LOCK_TIMEOUT):
     except ImportError:  # no POSIX file locks: compile without
         yield False
         return
-    path = os.path.splitext(module.__file__)[0] + ".lock"
+    if isinstance(module, str):
+        path = os.path.join(cache_dir(), f"{KERNEL_LOCK_PREFIX}{module}.lock")
+    else:
+        path = os.path.splitext(module.__file__)[0] + ".lock"
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
     waited = False
     try:
@@ -465,6 +476,9 @@ def clear() -> int:
     n = len([m for m in entries if m])
     for paths in entries.values():
         _remove(paths)
+    if os.path.isdir(d):
+        _remove([os.path.join(d, f) for f in os.listdir(d)
+                 if f.startswith(KERNEL_LOCK_PREFIX) and f.endswith(".lock")])
     for m in [m for m in _LOADED]:
         _LOADED.pop(m)
     return n

@@ -16,7 +16,7 @@ from . import contact
 from .cache import dependency_digest, is_compiled
 from .effects import is_self_contact
 
-__all__ = ["compile_estimate", "kernel_ref", "stepper_depends"]
+__all__ = ["cold_kernel_groups", "compile_estimate", "kernel_ref", "stepper_depends"]
 
 #: What a first compile costs beyond the stepper's own code (wall s of ``compile_time``,
 #: fig3-strip and supp-fig5 impacts, 2-core machine at load about 1; "Compile cost" in
@@ -26,6 +26,16 @@ __all__ = ["compile_estimate", "kernel_ref", "stepper_depends"]
 KERNELS_COLD_S = 12.0
 CONTACT_LINK_S = 7.5
 CONTACT_KERNELS_S = 35.0
+
+
+def cold_kernel_groups(effects) -> tuple[str, ...]:
+    """The groups of kernels shared by several steppers that these effects need and numba's
+    cache does not hold yet: ``("contact",)`` for self-contact's kernels, else ``()``
+    (the names of their locks, :func:`dynamics.cache.compile_lock`)."""
+    if any(is_self_contact(e) for e in effects) and not is_compiled(
+            contact, ("_project_positions", "_project_velocities")):
+        return ("contact",)
+    return ()
 
 
 def compile_estimate(base_s, per_effect_s, effects, kernels):
@@ -41,7 +51,7 @@ def compile_estimate(base_s, per_effect_s, effects, kernels):
         est += KERNELS_COLD_S
     if contact_effects:
         est += CONTACT_LINK_S
-        if not is_compiled(contact, ("_project_positions", "_project_velocities")):
+        if "contact" in cold_kernel_groups(effects):
             est += CONTACT_KERNELS_S
     return est
 

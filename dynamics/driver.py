@@ -36,6 +36,7 @@ Built-in methods: ``"rattle"`` (:mod:`dynamics.rattle`, explicit, symplectic) an
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import logging
 import math
@@ -49,6 +50,7 @@ from pathlib import Path
 import numpy as np
 
 from .cache import compile_lock
+from .codegen import cold_kernel_groups
 from .rod import Rod
 
 __all__ = [
@@ -480,7 +482,15 @@ def simulate(rod, effects=(), *, method="rattle", dt, t_end, frames=None, events
             log.info("waiting for another process compiling the %s stepper for %s",
                      method, run.label)
 
-        with compile_lock(run.mod, on_wait=waiting):
+        with contextlib.ExitStack() as held:
+            # kernels that other steppers share (self-contact's): while numba's cache lacks
+            # them, one process compiles them and the others wait, then load them; these
+            # locks come before the stepper's, in every process
+            for group in cold_kernel_groups(run.effects):
+                held.enter_context(compile_lock(group, on_wait=functools.partial(
+                    log.info, "waiting for another process compiling the %s kernels",
+                    group)))
+            held.enter_context(compile_lock(run.mod, on_wait=waiting))
             if not run.compiled():
                 log.info("compiling the %s stepper for %s: once, about %.0f s", method,
                          run.label, run.compile_estimate())

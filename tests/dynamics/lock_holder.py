@@ -17,8 +17,9 @@ time.sleep(float(sys.argv[2]))
 
 @contextlib.contextmanager
 def lock_held_by_another_process(mod, seconds):
-    """A child process holding ``mod``'s compile lock for ``seconds``; yields it."""
-    lock = os.path.splitext(mod.__file__)[0] + ".lock"
+    """A child process holding ``mod``'s compile lock (or the lock file at the path
+    ``mod``) for ``seconds``; yields it."""
+    lock = mod if isinstance(mod, str) else os.path.splitext(mod.__file__)[0] + ".lock"
     holder = subprocess.Popen([sys.executable, "-c", HOLD, lock, str(seconds)],
                               stdout=subprocess.PIPE, text=True)
     try:

@@ -203,6 +203,25 @@ def test_a_second_process_waits_for_the_one_compiling_then_goes_on(tmp_cache):
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX file locks")
+def test_a_kernel_groups_lock_lives_in_the_cache_and_clear_removes_it(tmp_cache):
+    """Kernels several steppers share have a lock by name, in the cache directory (not
+    beside a module of the package, which may be read-only); ``clear`` removes it and
+    counts no module for it."""
+    import time
+
+    lock = os.path.join(cache.cache_dir(), "kernels-contact.lock")
+    said = []
+    with lock_held_by_another_process(lock, 1.5):
+        t0 = time.monotonic()
+        with cache.compile_lock("contact", on_wait=lambda: said.append(1)) as waited:
+            entered = time.monotonic() - t0
+        assert waited and said == [1] and entered > 1.0
+    assert os.stat(lock).st_mode & 0o777 == 0o600
+    assert cache.info()["modules"] == 0
+    assert cache.clear() == 0 and not os.path.exists(lock)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX file locks")
 def test_a_lock_held_past_the_timeout_is_passed_by(tmp_cache):
     mod = cache.load_module("test", SRC, "d" * 64)
     with lock_held_by_another_process(mod, 30) as holder:

@@ -274,6 +274,37 @@ def test_loaded_contacts_end_each_step_without_approaching(method):
     assert worst < 1e-3, worst
 
 
+@pytest.mark.skipif(platform.system() == "Windows", reason="POSIX file locks")
+def test_a_first_contact_compile_waits_for_another_compiling_the_contact_kernels(
+        monkeypatch, caplog):
+    """While numba's cache lacks the contact kernels, a process compiling any stepper with
+    self-contact first takes the contact kernels' lock: with another process holding it,
+    ``simulate`` waits, says so, then runs as before (here the kernels are compiled, and
+    their absence from the cache is simulated)."""
+    import logging
+    import time
+
+    from lock_holder import lock_held_by_another_process
+
+    from dynamics import cache, codegen, rattle
+
+    _, _, before = _collision("rattle", 0.0)
+    assert codegen.cold_kernel_groups((SelfContact(0.05),)) == ()
+    monkeypatch.setattr(codegen, "is_compiled", lambda module, functions: False)
+    monkeypatch.setattr(rattle.Run, "compiled", lambda self: False)
+    assert codegen.cold_kernel_groups((Gravity(1.0), SelfContact(0.05))) == ("contact",)
+    assert codegen.cold_kernel_groups((Gravity(1.0),)) == ()
+    lock = f"{cache.cache_dir()}/kernels-contact.lock"
+    with caplog.at_level(logging.INFO, logger="dynamics"), \
+            lock_held_by_another_process(lock, 1.5):
+        t0 = time.monotonic()
+        _, _, res = _collision("rattle", 0.0)
+        waited = time.monotonic() - t0
+    assert "waiting for another process compiling the contact kernels" in caplog.text
+    assert waited > 1.0
+    assert np.array_equal(res.positions, before.positions)
+
+
 def test_without_the_effect_no_contact_code():
     from dynamics import midpoint, rattle
     from dynamics.contact import NO_CONTACT_WORK
