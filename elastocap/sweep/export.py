@@ -20,6 +20,7 @@ from elastocap.sweep.store import (
     ResultStore,
     StoreError,
     decode_positions,
+    select_list,
 )
 
 __all__ = ["EXPORT_SUFFIXES", "check_export", "export_runs", "load"]
@@ -87,10 +88,7 @@ def load(store, positions: bool = False):
     names = ["id", *(n for n, _ in COLUMNS if positions or n != "final_positions")]
     con = ResultStore._open_readonly(path)
     try:
-        # a store of an older layout lacks the newer columns: read as missing values
-        have = {r[1] for r in con.execute("PRAGMA table_info(runs)")}
-        cols = [n if n in have else f"NULL AS {n}" for n in names]
-        cur = con.execute(f"SELECT {', '.join(cols)} FROM runs ORDER BY id")
+        cur = con.execute(f"SELECT {select_list(con, names)} FROM runs ORDER BY id")
         rows = cur.fetchall()
     except sqlite3.DatabaseError as err:  # an empty file, or another database
         raise StoreError(f"store {str(path)!r}: not a sweep store ({err})") from None

@@ -48,7 +48,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["COLUMNS", "OUTCOMES", "SCHEMA_VERSION", "ResultStore", "StoreError"]
+__all__ = ["COLUMNS", "OUTCOMES", "SCHEMA_VERSION", "ResultStore", "StoreError",
+           "select_list"]
 
 #: Bump when the table layout changes; a store with another version is refused, except
 #: those :data:`MIGRATIONS` can bring up to date (done when a sweep opens it for writing).
@@ -138,6 +139,13 @@ def _readable_version(version) -> bool:
     while v in MIGRATIONS:
         v += 1
     return v == SCHEMA_VERSION
+
+
+def select_list(con: sqlite3.Connection, names) -> str:
+    """The SELECT list of the columns ``names`` of ``runs``, a column that a store of an
+    older layout lacks read as NULL (such a store is read as it is, not migrated)."""
+    have = {r[1] for r in con.execute("PRAGMA table_info(runs)")}
+    return ", ".join(n if n in have else f"NULL AS {n}" for n in names)
 
 
 def _schema_sql() -> str:
@@ -559,9 +567,8 @@ class ResultStore:
         self, *, version: str | None = None, runner: str | None = None, positions: bool = False
     ) -> list[dict]:
         """All rows (optionally of one version / runner), in insertion order."""
-        cols = (
-            "*" if positions else ", ".join(["id", *(n for n in _NAMES if n != "final_positions")])
-        )
+        cols = select_list(self._con, ["id", *(n for n in _NAMES
+                                               if positions or n != "final_positions")])
         where, args = [], []
         if version is not None:
             where.append("version = ?")

@@ -103,6 +103,13 @@ def test_a_store_of_the_previous_layout_is_read_and_brought_up_to_date(tmp_path)
     assert len(df) == 1 and df["outcome"][0] == "open"
     assert df["contact_steps"].isna().all() and df["contact_gap_error"].isna().all()
     assert str(df["contact_steps"].dtype) == "Int64" and isinstance(df, pd.DataFrame)
+    reader = ResultStore.reader(p)  # reports and plots
+    try:
+        (r,) = reader.rows()
+        assert r["outcome"] == "open" and r["contact_steps"] is None
+        assert reader.rows(positions=True)[0]["final_positions"].shape == (3, 2)
+    finally:
+        reader.close()
     assert sorted(x.name for x in tmp_path.iterdir()) == before  # read-only
     with ResultStore(p) as st:
         (old,) = st.rows()
