@@ -290,8 +290,8 @@ ContactWork = collections.namedtuple("ContactWork", [
 
 
 #: What a stepper without self-contact passes in place of the work arrays: its contact code
-#: is compiled out, and an empty tuple keeps the 30 arrays' type out of its signatures,
-#: where it cost 1.25 s of a 7.1 s stepper compile (supp-fig5, kernels cached, measured).
+#: is compiled out, and an empty tuple keeps the 30 arrays' type out of its signatures
+#: (a new supp-fig5 stepper compiles 0.25-2.1 s faster: docs/guide/time-stepping.md).
 NO_CONTACT_WORK = ()
 
 

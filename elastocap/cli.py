@@ -382,9 +382,11 @@ def cmd_impact(args) -> int:
                   f"contacts at once, gap error {c['gap_error']:.2g} of the thickness, "
                   f"{c['failures']} failures")
         crossed = []
-        if res.rod_crossing_time is not None:  # only without a thickness
+        if res.rod_crossing_time is not None:
+            why = ("its self-contact did not hold it" if res.self_contact
+                   else "without rod.thickness the model has no self-contact")
             crossed.append(f"the rod crosses itself at t = {res.rod_crossing_time:.6g} "
-                           "(without rod.thickness the model has no self-contact)")
+                           f"({why})")
         if res.interface_crossing_time is not None:
             crossed.append(f"the drop's interface crosses the rod at t = "
                            f"{res.interface_crossing_time:.6g} (drop.interface_contact = "

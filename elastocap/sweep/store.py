@@ -130,15 +130,18 @@ MIGRATIONS: dict[int, tuple[str, ...]] = {
 }
 
 
-def _readable_version(version) -> bool:
-    """A store of this recorded version can be read (and is migrated when written)."""
+def _migration(version) -> list[str] | None:
+    """The statements that bring a store of this recorded schema version up to date
+    (``[]`` for the current one), or None when none can (the store is refused)."""
     try:
         v = int(version)
     except (TypeError, ValueError):
-        return False
+        return None
+    stmts = []
     while v in MIGRATIONS:
+        stmts += MIGRATIONS[v]
         v += 1
-    return v == SCHEMA_VERSION
+    return stmts if v == SCHEMA_VERSION else None
 
 
 def select_list(con: sqlite3.Connection, names) -> str:
@@ -310,7 +313,7 @@ class ResultStore:
                 if "meta" in tables:
                     row = con.execute(
                         "SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-                    if row is None or not _readable_version(row[0]):
+                    if row is None or _migration(row[0]) is None:
                         raise StoreError(
                             f"store {str(path)!r}: schema version {row and row[0]}, this "
                             f"elastocap writes version {SCHEMA_VERSION}; give a new file")
@@ -350,18 +353,15 @@ class ResultStore:
                 "SELECT name FROM sqlite_master WHERE type = 'table'")}
             row = (con.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
                    if "meta" in tables else None)
-            if row is not None and row[0] != str(SCHEMA_VERSION):
-                if not _readable_version(row[0]):
-                    raise StoreError(
-                        f"store {str(self.path)!r}: schema version {row[0]}, this elastocap "
-                        f"writes version {SCHEMA_VERSION}; give a new file"
-                    )
-                # an older layout: brought up to date in this transaction (all or nothing)
-                v = int(row[0])
-                while v in MIGRATIONS:
-                    for stmt in MIGRATIONS[v]:
-                        con.execute(stmt)
-                    v += 1
+            stmts = [] if row is None else _migration(row[0])
+            if stmts is None:
+                raise StoreError(
+                    f"store {str(self.path)!r}: schema version {row[0]}, this elastocap "
+                    f"writes version {SCHEMA_VERSION}; give a new file"
+                )
+            if stmts:  # an older layout: brought up to date in this transaction
+                for stmt in stmts:
+                    con.execute(stmt)
                 con.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
                             (str(SCHEMA_VERSION),))
             for stmt in _schema_sql().split(";\n"):

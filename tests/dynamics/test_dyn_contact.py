@@ -314,8 +314,8 @@ def test_without_the_effect_no_contact_code():
         assert mod.HAS_CONTACT is False
     for mod in (rattle.compile_stepper((Gravity(1.0), SelfContact(0.1))),):
         assert mod.HAS_CONTACT is True
-    # nor its 30 work arrays in the stepper's signatures (they cost a contact-free
-    # stepper's compile about 1 s); a run is set up without compiling
+    # nor its 30 work arrays in the stepper's signatures (0.25-2.1 s of a contact-free
+    # stepper's compile, measured); a run is set up without compiling
     rod = Rod.straight(10, 1.0)
     for method in (rattle, midpoint):
         assert method.Run(rod, (Gravity(1.0),), 1e-3, 0.0, None).ck is NO_CONTACT_WORK
