@@ -42,3 +42,11 @@ def dense_to_band(A, kl, ku):
 def simulate_midpoint(rod, effects=(), **kwargs):
     """``dynamics.simulate`` with the midpoint method."""
     return dynamics.simulate(rod, effects, method="midpoint", **kwargs)
+
+
+def clamped(clamp, g=0.0, damping=0.0, load=(0.0, 0.0)):
+    """The effects of every clamped-rod test: ``clamp``, gravity ``g``, damping and a point
+    load on the last node (each an exact no-op at zero), so that they share one compiled
+    RATTLE stepper instead of compiling one per combination."""
+    return (clamp, dynamics.Gravity(g), dynamics.Damping(damping),
+            dynamics.PointLoad(-1, load))

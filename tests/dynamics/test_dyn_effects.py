@@ -7,6 +7,7 @@ import numba
 import numpy as np
 import pytest
 from dyn_ext_kernels import AnchorSpring
+from dyn_helpers import clamped
 
 import dynamics
 from dynamics import (
@@ -140,7 +141,7 @@ def test_clamped_cantilever_under_gravity_matches_beam_theory():
     n = 40
     h = L / (n - 0.5)
     rod = Rod.straight(n, L + 0.5 * h, origin=(-0.5 * h, 0.0), mu=mu, B=B)
-    effects = (Clamp(0, (-0.5 * h, 0.0), angle=0.0), Gravity(g), Damping(2.0))
+    effects = clamped(Clamp(0, (-0.5 * h, 0.0), angle=0.0), g=g, damping=2.0)
     r = simulate(rod, effects, dt=0.4 * h * h, t_end=20.0, frames=5,
                  rest=RestCriterion(1e-22, 0.5))
     assert r.success, r.message
@@ -155,8 +156,8 @@ def test_clamped_cantilever_under_gravity_matches_beam_theory():
 
 def test_pinned_node_negative_index():
     rod = Rod.straight(10, 1.0)
-    # undamped (Damping(0)): the compiled stepper of the cantilever above
-    r = simulate(rod, (Clamp(-1, (1.0, 0.0)), Gravity(1.0), Damping(0.0)), dt=1e-3,
+    # undamped: the compiled stepper of the cantilever above
+    r = simulate(rod, clamped(Clamp(-1, (1.0, 0.0)), g=1.0), dt=1e-3,
                  t_end=1.0, frames=3)
     np.testing.assert_array_equal(r.positions[:, -1], [[1.0, 0.0]] * 3)
     assert r.positions[-1, 0, 1] < -0.1  # swings down about the pin

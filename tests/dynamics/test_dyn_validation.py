@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from dyn_helpers import rod_from_angles
+from dyn_helpers import clamped, rod_from_angles
 
-from dynamics import Clamp, Damping, Gravity, euler_bernoulli_omega, simulate
+from dynamics import Clamp, euler_bernoulli_omega, simulate
 from dynamics.reference import BETA_L, crossing_period
 
 
@@ -41,8 +41,8 @@ def first_mode_frequency_error(kind, n_edges, periods=5, amplitude=1e-4):
     effects = ()
     if kind == "clamped-free":
         theta[0] = 0.0
-        # no gravity, no damping: the cantilever's stepper (test_dyn_effects.py)
-        effects = (Clamp(0, (s[0], 0.0), angle=0.0), Gravity(0.0), Damping(0.0))
+        # no gravity, no damping, no load: the cantilever's stepper (test_dyn_effects.py)
+        effects = clamped(Clamp(0, (s[0], 0.0), angle=0.0))
     rod = rod_from_angles(theta, h, origin=(s[0], 0.0))
     T = 2 * np.pi / omega
     r = simulate(rod, effects, dt=0.25 * h * h, t_end=periods * T, frames=periods * 120)
