@@ -260,7 +260,7 @@ class _Core:
 
 
 # ================================================================== fold location
-def _fold_system(ev, u, p, b, c):
+def fold_system(ev, u, p, b, c):
     """Solve ``[[J, b], [c^T, 0]] [v; g] = [0; 1]`` and its transpose.
 
     Returns ``g, v, w, J`` with ``g`` the minimally augmented fold test function
@@ -279,7 +279,7 @@ def _fold_system(ev, u, p, b, c):
     return sv[n], sv[:n], sw[:n], J
 
 
-def _fold_gradient(ev, u, p, v, w, q_family=None):
+def fold_gradient(ev, u, p, v, w, q_family=None):
     """``g_u = -w^T J_u v`` and ``g_p = -w^T J_p v`` by central differences.
 
     ``d/du (w^T J(u) v) = d/dh J(u + h v)^T w`` at h = 0, so two Jacobian
@@ -304,7 +304,7 @@ def _locate_fold(ev, u, p, v0, tol, max_iter=25, ftol=1e-10):
     b = c.copy()
     # One transpose solve turns the right null guess into a left one, so the
     # bordered matrix stays well conditioned for non-symmetric J.
-    r = _fold_system(ev, u, p, b, c)
+    r = fold_system(ev, u, p, b, c)
     if r is None:
         return u, p, c, False, math.inf, 0, "singular bordered matrix at the fold guess"
     _, v, w, _ = r
@@ -312,13 +312,13 @@ def _locate_fold(ev, u, p, v0, tol, max_iter=25, ftol=1e-10):
         b = w / np.linalg.norm(w)
     prec = math.inf
     for it in range(1, max_iter + 1):
-        r = _fold_system(ev, u, p, b, c)
+        r = fold_system(ev, u, p, b, c)
         if r is None:
             return u, p, c, False, prec, it, "singular bordered matrix during fold Newton"
         g, v, w, J = r
         F = ev.F(u, p)
         Fp = ev.Fp(u, p)
-        gu, gp = _fold_gradient(ev, u, p, v, w)
+        gu, gp = fold_gradient(ev, u, p, v, w)
         A = bordered(J, Fp, gu, gp)
         fac = factorize(A)
         if fac is None:

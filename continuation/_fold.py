@@ -17,7 +17,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ._branch import Branch, SpecialPoint
-from ._core import _fold_gradient, _fold_system, continue_branch
+from ._core import continue_branch, fold_gradient, fold_system
 from ._linalg import bordered
 from ._problem import Evaluator, Problem, check_jacobian
 from ._settings import ContinuationSettings
@@ -73,7 +73,7 @@ class FoldProblem(Problem):
         key = (U.tobytes(), float(q))
         if key != self._last_key:
             u, p = self._split(U)
-            self._last_sys = _fold_system(ev, u, p, self.b, self.c)
+            self._last_sys = fold_system(ev, u, p, self.b, self.c)
             self._last_key = key
         return self._last_sys
 
@@ -91,7 +91,7 @@ class FoldProblem(Problem):
         if r is None:
             return np.full((self.n + 1, self.n + 1), np.nan)
         _, v, w, J = r
-        gu, gp = _fold_gradient(ev, u, p, v, w)
+        gu, gp = fold_gradient(ev, u, p, v, w)
         return bordered(J, ev.Fp(u, p), gu, gp)
 
     def dfdp(self, U, q):
@@ -108,7 +108,7 @@ class FoldProblem(Problem):
 
     def _on_accept(self, U, q):
         u, p = self._split(U)
-        r = _fold_system(self._ev(q), u, p, self.b, self.c)
+        r = fold_system(self._ev(q), u, p, self.b, self.c)
         if r is not None:
             _, v, w, _ = r
             nv, nw = np.linalg.norm(v), np.linalg.norm(w)
@@ -174,7 +174,7 @@ def continue_fold(
     if settings.check_jacobian:
         check_jacobian(base, u, fold.p)
     v = np.asarray(fold.data.get("kernel", np.ones(u.size)), dtype=float)[: u.size]
-    r = _fold_system(bev, u, fold.p, v / np.linalg.norm(v), v / np.linalg.norm(v))
+    r = fold_system(bev, u, fold.p, v / np.linalg.norm(v), v / np.linalg.norm(v))
     w = r[2] if r is not None else v
     prob = FoldProblem(family, w, v, name=f"fold curve of {getattr(base, 'name', 'problem')}")
     s2 = settings.replace(detect_branch_points=False, compute_stability=False,

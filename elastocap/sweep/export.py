@@ -9,7 +9,6 @@ store's columns (:data:`elastocap.sweep.store.COLUMNS`; the final shape only wit
 
 from __future__ import annotations
 
-import sqlite3
 from pathlib import Path
 
 from elastocap.io import atomic_path, check_writable_file
@@ -20,7 +19,6 @@ from elastocap.sweep.store import (
     ResultStore,
     StoreError,
     decode_positions,
-    select_list,
 )
 
 __all__ = ["EXPORT_SUFFIXES", "check_export", "export_runs", "load"]
@@ -84,16 +82,9 @@ def load(store, positions: bool = False):
     path = Path(store.path if isinstance(store, ResultStore) else store)
     if not path.is_file():
         raise StoreError(f"store {str(path)!r}: no such file")
-    ResultStore.check(path)
     names = ["id", *(n for n, _ in COLUMNS if positions or n != "final_positions")]
-    con = ResultStore._open_readonly(path)
-    try:
-        cur = con.execute(f"SELECT {select_list(con, names)} FROM runs ORDER BY id")
-        rows = cur.fetchall()
-    except sqlite3.DatabaseError as err:  # an empty file, or another database
-        raise StoreError(f"store {str(path)!r}: not a sweep store ({err})") from None
-    finally:
-        con.close()
+    with ResultStore.reader(path) as st:  # refuses a file that is not a store
+        rows = st.table(names)
     df = pd.DataFrame.from_records(rows, columns=names)
     for c in ("contact_steps", "contact_max_active"):  # missing without a thickness
         df[c] = df[c].astype("Int64")

@@ -579,6 +579,17 @@ class ResultStore:
         sql = f"SELECT {cols} FROM runs" + (" WHERE " + " AND ".join(where) if where else "")
         return self._rows(self._con.execute(sql + " ORDER BY id", args))
 
+    def table(self, names) -> list[tuple]:
+        """The columns ``names`` of every row, as stored (no decoding), in insertion order;
+        a column this store's schema lacks reads as None (:func:`select_list`)."""
+        try:
+            cur = self._con.execute(f"SELECT {select_list(self._con, names)} FROM runs "
+                                    "ORDER BY id")
+            return cur.fetchall()
+        except sqlite3.DatabaseError as err:
+            raise StoreError(f"store {str(self.path)!r}: not a usable sweep store "
+                             f"({err})") from None
+
     def count(self) -> int:
         return int(self._con.execute("SELECT COUNT(*) FROM runs").fetchone()[0])
 
