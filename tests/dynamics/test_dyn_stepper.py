@@ -20,9 +20,9 @@ def test_kinetic_energy_matches_numpy_to_round_off():
 def test_frames_are_the_states_of_shorter_runs(wavy_rod):
     """A frame recorded by the compiled loop is, bit for bit, the end state of a run
     stopped at that time (the loop runs step by step through the frame stops)."""
-    # a rod pinned at one end swinging under gravity, damped (the effects of the cantilever
-    # test of test_dyn_effects.py, whose stepper the suite compiles once for both)
-    effects = lambda: (Clamp(0, tuple(wavy_rod.x[0])), Gravity(0.3), Damping(0.05))  # noqa: E731
+    # a rod pinned at one end swinging under gravity, damped (the effects of the clamped-rod
+    # tests, whose stepper the suite compiles once for all)
+    effects = lambda: clamped(Clamp(0, tuple(wavy_rod.x[0])), g=0.3, damping=0.05)  # noqa: E731
     long = simulate(wavy_rod, effects(), dt=2e-3, t_end=1.0, frames=11)
     short = simulate(wavy_rod, effects(), dt=2e-3, t_end=0.5, frames=2)
     np.testing.assert_array_equal(long.times, (np.arange(11) * 50) * 2e-3)
