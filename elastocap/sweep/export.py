@@ -80,8 +80,6 @@ def load(store, positions: bool = False):
     """
     pd = _pandas("elastocap.sweep.load")
     path = Path(store.path if isinstance(store, ResultStore) else store)
-    if not path.is_file():
-        raise StoreError(f"store {str(path)!r}: no such file")
     names = ["id", *(n for n, _ in COLUMNS if positions or n != "final_positions")]
     with ResultStore.reader(path) as st:  # refuses a file that is not a store
         rows = st.table(names)

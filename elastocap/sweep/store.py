@@ -144,6 +144,13 @@ def _migration(version) -> list[str] | None:
     return stmts if v == SCHEMA_VERSION else None
 
 
+def _version_error(path, version) -> StoreError:
+    """The refusal of a store whose recorded schema version no migration brings up to
+    date."""
+    return StoreError(f"store {str(path)!r}: schema version {version}, this elastocap "
+                      f"writes version {SCHEMA_VERSION}; give a new file")
+
+
 def select_list(con: sqlite3.Connection, names) -> str:
     """The SELECT list of the columns ``names`` of ``runs``, a column that a store of an
     older layout lacks read as NULL (such a store is read as it is, not migrated)."""
@@ -314,9 +321,7 @@ class ResultStore:
                     row = con.execute(
                         "SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
                     if row is None or _migration(row[0]) is None:
-                        raise StoreError(
-                            f"store {str(path)!r}: schema version {row and row[0]}, this "
-                            f"elastocap writes version {SCHEMA_VERSION}; give a new file")
+                        raise _version_error(path, row and row[0])
                     if resolution is not None:
                         row = con.execute(
                             "SELECT value FROM meta WHERE key = 'resolution'").fetchone()
@@ -355,10 +360,7 @@ class ResultStore:
                    if "meta" in tables else None)
             stmts = [] if row is None else _migration(row[0])
             if stmts is None:
-                raise StoreError(
-                    f"store {str(self.path)!r}: schema version {row[0]}, this elastocap "
-                    f"writes version {SCHEMA_VERSION}; give a new file"
-                )
+                raise _version_error(self.path, row[0])
             if stmts:  # an older layout: brought up to date in this transaction
                 for stmt in stmts:
                     con.execute(stmt)
