@@ -18,10 +18,11 @@
    warm run of every case (CPU time); medians, the with/without ratio of each tree, the
    extra CPU time per contact step, and whether both trees give the same frames (bytes).
    With ``--many``: instead a strip that ends lying on itself over up to ~100 contacts (a
-   run of the Fig 3d contact sweep at 200 edges).
+   run of the Fig 3d contact sweep at 200 edges); ``--many 6``: over up to ~150 (x = 6,
+   300 edges).
 
 Run: ``python benchmarks/contact_speed.py [--baseline REV|DIR] [--against REV] [--repeat K]
-[--only 1|2|3|4] [--many]``.
+[--only 1|2|3|4] [--many [4.5|6]]``.
 The thicknesses: supp-fig5 ``0.05`` (l_ec units), fig3-strip ``0.02`` (l_eg units, a strip
 of ~70 um): choices of this benchmark, not the paper's (its model has no contact).
 """
@@ -183,12 +184,20 @@ SUSTAINED_CASES = tuple(("fig3-strip", dict(ov, **{"rod.thickness": th}))
 #: ``--many``: a strip that ends lying on itself over up to ~100 contacts, a run of the
 #: Fig 3d contact sweep (``elastocap figures --only fig3d-contact``: x = 4.5, We^1/2 =
 #: 3.156, damping 0.1, t_max 150, the strip's thickness 0.0157) at its second level, 200
-#: edges.
-MANY_CASES = tuple(("fig3-strip", {"drop.distance_from_end": 4.5,
-                                   "drop.wetted_length": 1.488958, "effects.damping": 0.1,
-                                   "numerics.t_max": 150.0, "numerics.n_edges": 200,
-                                   "numerics.dt": 0.00161035875, "rod.thickness": th})
-                   for th in (0.0, 0.0157))
+#: edges; ``--many 6``: one folded flat on itself over up to ~150 contacts, x = 6, We^1/2 =
+#: 3.5, 300 edges (a run of that sweep's third level).
+MANY_CASES = {
+    "4.5": tuple(("fig3-strip", {"drop.distance_from_end": 4.5,
+                                 "drop.wetted_length": 1.488958, "effects.damping": 0.1,
+                                 "numerics.t_max": 150.0, "numerics.n_edges": 200,
+                                 "numerics.dt": 0.00161035875, "rod.thickness": th})
+                 for th in (0.0, 0.0157)),
+    "6": tuple(("fig3-strip", {"drop.distance_from_end": 6.0,
+                               "drop.wetted_length": 1.586396, "effects.damping": 0.1,
+                               "numerics.t_max": 150.0, "numerics.n_edges": 300,
+                               "numerics.dt": 0.000715715, "rod.thickness": th})
+               for th in (0.0, 0.0157)),
+}
 
 #: One process of section 4: each case run once to compile / load, then timed once (CPU
 #: time), with its contact steps and a digest of its frames.
@@ -212,14 +221,14 @@ for name, ov in json.loads(sys.argv[2]):
 """
 
 
-def sustained_against(against, repeat, many=False):
+def sustained_against(against, repeat, many=None):
     """Section 4: the with/without ratio of sustained contact, the working tree against
-    revision ``against``, side by side in alternated fresh processes (``many``: the
-    strip lying on itself of :data:`MANY_CASES` instead)."""
+    revision ``against``, side by side in alternated fresh processes (``many``, a key of
+    :data:`MANY_CASES`: that strip lying on itself instead)."""
     sha, tree = _baseline_tree(against)
     section(f"4. sustained contact: {sha} against the working tree (CPU s of a warm run, "
             f"medians of {repeat} alternated processes per tree)")
-    all_cases = MANY_CASES if many else SUSTAINED_CASES
+    all_cases = MANY_CASES[many] if many else SUSTAINED_CASES
     cases = json.dumps([list(c) for c in all_cases])
     trees = {sha: tree, "tree": ROOT}
     res = alternate_processes(trees, sha, SUSTAINED_SNIPPET, cases, 1, repeat)
@@ -273,8 +282,9 @@ def main():
                     help="git revision of the contact code to compare with (section 4)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--only", type=int, choices=(1, 2, 3, 4))
-    ap.add_argument("--many", action="store_true",
-                    help="section 4 on a strip lying on itself (up to ~100 contacts)")
+    ap.add_argument("--many", nargs="?", const="4.5", choices=tuple(MANY_CASES),
+                    help="section 4 on a strip lying on itself: x = 4.5 (the default, up to "
+                         "~100 contacts) or 6 (up to ~150)")
     a = ap.parse_args()
     if a.only in (None, 1):
         contact_free_against(a.baseline, a.repeat)

@@ -44,9 +44,26 @@ the rod touches (restitution 0, frictionless), together with the edges' ``G v = 
 projection onto a convex cone, so it never adds kinetic energy. The contact forces are
 pairwise and opposite (node against the two nodes of the segment, weights ``1, -(1 - u),
 -u``): momentum is conserved to round-off. Redundant contacts (two stacked layers touch
-node-on-segment both ways) make the capacitance matrix singular: projected Gauss-Seidel
-copes with that (the positions are unique, the split of the multipliers is not); a node
-closest to a vertex is held by one of the two segments that share it, not both.
+node-on-segment both ways) make the capacitance matrix singular: the positions are unique,
+the split of the multipliers is not; a node closest to a vertex is held by one of the two
+segments that share it, not both.
+
+Redundant contacts and the pivoting
+-----------------------------------
+A strip folded flat on the ground is the common redundant case: every node of either layer
+touches a segment of the other, and the ground holds the lower layer's normal
+coordinates, so a lower node's row is the combination ``(1 - u, u)`` of the rows of the
+upper segment's two nodes.  In a problem recorded from fig3-strip at x = 6 (300 edges,
+121 contacts) the capacitance matrix has 57 zero singular values.  Taken together as
+equations, redundant rows that do not agree exactly pull against each other through the
+diagonal shift (there: multipliers of -1.77 beside pushes of 8e-6 in the third pivot), and
+block pivoting (every infeasible contact changed at once) drops them, re-adds them and
+cycles.  Both pivotings (:func:`_lcp_guess`, :func:`_band_lcp`) therefore change every
+infeasible contact for :data:`BLOCK_PIVOTS` pivots, then one at a time, the most
+infeasible first.
+This is not Murty's least-index rule: it is not proven to end, and an active set that
+does not settle within the pivot cap still goes to the dense solve and projected
+Gauss-Seidel, which copes with redundancy but converges slowly on these problems.
 
 Broad phase
 -----------
@@ -92,8 +109,11 @@ CONTACT_SKIN = 0.5
 #: Listed pairs per node the list can hold (a rod lying on itself lists ~3).
 PAIRS_PER_NODE = 16
 
-#: Most contacts active at once (the capacitance matrix is dense in them).
-MAX_ACTIVE = 512
+#: Most contacts active at once (the capacitance matrix is dense in them: its work arrays
+#: hold ``min(3 n, MAX_ACTIVE)**2`` and ``m min(3 n, MAX_ACTIVE)`` floats, 8 MB each at
+#: 1000 edges).  A strip folded flat on itself touches with about every node of both
+#: layers: fig3-strip at x = 6 and 1000 edges reached 510 contacts and stopped at 512.
+MAX_ACTIVE = 1024
 
 #: Newton iterations of a position projection with contacts (edges converge
 #: quadratically, the contact rows are linear: 2-3 are usual).
@@ -138,8 +158,17 @@ VELOCITY_REFINEMENTS = 3
 #: Sweeps of projected Gauss-Seidel on the contacts' complementarity problem.
 PGS_MAX_SWEEPS = 2000
 
-#: Solves of the block pivoting that finds the start of projected Gauss-Seidel.
-GUESS_PIVOTS = 4
+#: Solves of the pivoting that finds the start of projected Gauss-Seidel.
+GUESS_PIVOTS = 40
+
+#: Pivots of :func:`_lcp_guess` and :func:`_band_lcp` that change every infeasible contact
+#: at once (block principal pivoting) before they change one at a time, the most infeasible.
+#: Block pivots alone cycle on redundant contacts (see the module notes): on a strip folded
+#: flat on the ground (fig3-strip, x = 6, 300 edges) 2,979 banded solves ran out of pivots
+#: and went to the dense solve, 2,131 of those on to projected Gauss-Seidel's sweep cap.
+#: With single pivots after these in both pivotings, 85 ran out and 86 dense solves reached
+#: the cap; the run took 36 s instead of 75 s (docs/guide/contact.md).
+BLOCK_PIVOTS = 3
 
 #: Largest half-bandwidth of the bordered system (edge rows and the active contacts' rows)
 #: in the breadth-first order of its unknowns that :func:`_band_lcp` factorises: a rod lying
@@ -157,7 +186,7 @@ BAND_MIN = 40
 
 #: Changes of the active set :func:`_band_lcp` tries before it hands the problem to the
 #: dense Schur complement and projected Gauss-Seidel (redundant contacts can cycle).
-BAND_PIVOTS = 8
+BAND_PIVOTS = 40
 
 #: Relative residual of the banded solve (factorised without pivoting, its contact rows
 #: shifted) above which it is not trusted and the dense solve is used instead.
@@ -746,7 +775,8 @@ def _lcp_guess(S, q, nu, na, mu0, eq, hint, shift, tol, ck):
     ``A`` (``mu0 > 0``, ``eq`` or ``hint``): ``nu_A`` solves ``S_AA nu_A = -q_A`` (LU,
     the diagonal shifted by ``shift`` as the iteration's is), 0 elsewhere; the inequality
     rows of ``A`` with ``nu S_kk <= tol`` (pulling, or pushing less than the iteration
-    resolves) leave it, the rows outside with ``w < -tol`` join it, and the solve is
+    resolves) leave it, else the rows outside with ``w < -tol`` join it (all of them for
+    the first :data:`BLOCK_PIVOTS` pivots, then the most infeasible one), and the solve is
     repeated, at most :data:`GUESS_PIVOTS` times.  When a solve changes
     nothing (the contacts that pushed in the previous iteration or step push again, or the
     pivots found the set) ``nu`` is set and the iteration's first sweep finds it
@@ -774,17 +804,28 @@ def _lcp_guess(S, q, nu, na, mu0, eq, hint, shift, tol, ck):
             b[r] = -q[k]
         if not _lu_solve(SA, b, piv, nA):
             return False
+        # after BLOCK_PIVOTS pivots that change every infeasible row, one at a time: the
+        # most infeasible
+        single = _pivot >= BLOCK_PIVOTS
         changed = False
+        kbest = -1
+        vbest = np.inf
         for r in range(nA):
             if not np.isfinite(b[r]):
                 return False
             # an inequality row leaves when it pulls or when its push is below what the
             # iteration resolves (nu S_kk <= tol: a contact that holds nothing)
             k = amap[r]
-            if eq[k] == 0 and b[r] * (S[k, k] + shift) <= tol:
-                inA[k] = 0
+            v = b[r] * (S[k, k] + shift)
+            if eq[k] == 0 and v <= tol:
                 changed = True
+                if not single:
+                    inA[k] = 0
+                elif v < vbest:
+                    vbest, kbest = v, k
         if changed:
+            if kbest >= 0:
+                inA[kbest] = 0
             continue
         for k in range(na):
             if inA[k] == 0:
@@ -792,9 +833,14 @@ def _lcp_guess(S, q, nu, na, mu0, eq, hint, shift, tol, ck):
                 for r in range(nA):
                     wk += S[k, amap[r]] * b[r]
                 if wk < -tol:
-                    inA[k] = 1
                     changed = True
+                    if not single:
+                        inA[k] = 1
+                    elif wk < vbest:
+                        vbest, kbest = wk, k
         if changed:
+            if kbest >= 0:
+                inA[kbest] = 1
             continue
         for k in range(na):
             nu[k] = 0.0
@@ -953,8 +999,10 @@ def _band_lcp(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, mu0, eq, hin
     pivoting in ``O((m + |A|) bw**2)`` (the edge rows are those SHAKE factorises without
     pivoting, the contact rows a positive diagonal block) and refined against the rows
     without the shift.  Then, as in :func:`_lcp_guess`, an inequality contact of ``A``
-    whose multiplier has ``nu_k (C W C^T)_kk <= tol`` leaves, and a contact outside whose
-    gap after the update is below ``-tol`` joins, at most :data:`BAND_PIVOTS` times.  When
+    whose multiplier has ``nu_k (C W C^T)_kk <= tol`` leaves, else a contact outside whose
+    gap after the update is below ``-tol`` joins (all of them for the first
+    :data:`BLOCK_PIVOTS` pivots, then the most infeasible one), at most
+    :data:`BAND_PIVOTS` times.  When
     nothing changes and the residual is below ``tol`` or :data:`BAND_RESIDUAL` of the
     right-hand side, the solution is returned: ``dl`` the edges' multipliers, ``dm`` the
     contacts' updates (``nu - mu0``).
@@ -1113,12 +1161,24 @@ def _band_lcp(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, mu0, eq, hin
         # contacts that pull leave first (redundant ones, whose equations together have no
         # solution, pull against each other through the shift), then the solution of the
         # rows of a settled set must be accurate
+        # (after BLOCK_PIVOTS pivots that change every infeasible contact, one at a time:
+        # the most infeasible)
+        single = _pivot >= BLOCK_PIVOTS
         changed = False
+        kbest = -1
+        vbest = np.inf
         for k in range(na):
-            if aidx[k] >= 0 and eq[k] == 0 and (dm[k] + mu0[k]) * (dkk[k] + shift) <= tol:
-                aidx[k] = -1
-                changed = True
+            if aidx[k] >= 0 and eq[k] == 0:
+                v = (dm[k] + mu0[k]) * (dkk[k] + shift)
+                if v <= tol:
+                    changed = True
+                    if not single:
+                        aidx[k] = -1
+                    elif v < vbest:
+                        vbest, kbest = v, k
         if changed:
+            if kbest >= 0:
+                aidx[kbest] = -1
             for k in range(na):
                 if aidx[k] >= 0:
                     aidx[k] = 0
@@ -1129,10 +1189,15 @@ def _band_lcp(R, O, w, f, rhs_e, na, ci, cu, cn, rhs_c, ck, dl, dm, mu0, eq, hin
             if aidx[k] < 0:
                 gk = _gap(dq, ci[k, 0], ci[k, 1], cu[k], cn[k, 0], cn[k, 1], 0.0) - rhs_c[k]
                 if gk < -tol:
-                    aidx[k] = 0
                     changed = True
+                    if not single:
+                        aidx[k] = 0
+                    elif gk < vbest:
+                        vbest, kbest = gk, k
         if not changed:
             return True
+        if kbest >= 0:
+            aidx[kbest] = 0
         for k in range(na):
             if aidx[k] >= 0:
                 aidx[k] = 0

@@ -382,10 +382,11 @@ def test_trajectories_are_those_recorded(method):
     sweeps of projected Gauss-Seidel, 10x the velocity refinements) the recorded arms differ
     by <= 6.6e-10 (RATTLE) and 6.4e-9 (midpoint); leaving the pushed contacts whose true
     gap ends above the thickness out of the velocity stage moves them by up to 0.33.  The
-    folded rod's solves with 40 contacts or more are banded (``_band_lcp``): with the dense
-    Schur complement alone it differs by 2.0e-8 (RATTLE) and 2.3e-5 (midpoint, a sensitive
-    run), within the 1.1e-7 and 9.0e-3 by which that dense solve differed from its converged
-    one."""
+    folded rod's solves with 40 contacts or more are banded (``_band_lcp``); it differs from
+    the converged solve by 1.8e-14 (RATTLE) and 2.7e-7 (midpoint, a sensitive run), and by
+    6.5e-9 and 1.3e-2 with block pivots alone (every infeasible contact changed at each
+    pivot, at most 4 and 8 pivots in ``_lcp_guess`` and ``_band_lcp``: redundant contacts
+    then cycle, and their problems go to projected Gauss-Seidel)."""
     ref = np.load(REF)
     same_build = (str(ref["numba_version"]) == numba.__version__
                   and str(ref["machine"]) == platform.machine())

@@ -11,11 +11,16 @@ the dense solve gives, and that update must satisfy the complementarity conditio
 multipliers ``nu >= 0``, gaps after the update ``>= 0``, zero where a contact pushes.
 """
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from dynamics import contact
+
+DATA = Path(__file__).parent / "data"
 
 
 def _folded(seed, m, f, held):
@@ -134,3 +139,102 @@ def test_an_unsettled_active_set_is_handed_to_the_dense_solve():
                             np.zeros(k + 2), mu2, zeros, zeros, 1e-18)
     assert ck.meta[contact._NBAND] == before[contact._NBAND]
     assert ck.meta[contact._NDENSE] == before[contact._NDENSE] + 1
+
+
+def _recorded():
+    """Three complementarity problems recorded from a strip folded flat on the ground
+    (fig3-strip, x = 6, 300 edges, thickness 0.0157, the velocity stage): 121-139
+    contacts both ways between the layers, the lower layer's normal coordinates held by
+    the ground, so about half the contact rows are combinations of the others (57 zero
+    singular values of the capacitance matrix in the first).  Block pivoting alone cycled
+    on all three (the banded solve refused them)."""
+    data = np.load(DATA / "redundant_stack_lcp.npz")
+    return [pytest.param({key[3:]: data[key] for key in data.files
+                          if key.startswith(f"p{k}_")}, id=f"recorded{k}")
+            for k in range(3)]
+
+
+def _kkt(p, dl, dm):
+    """The update of the positions and the complementarity conditions' residuals: the
+    least multiplier, the least gap after the update, the largest gap of a pushing
+    contact, the largest edge-row residual relative to the rows' size for this update."""
+    R, O, w, ci, cu, cn = p["R"], p["O"], p["w"], p["ci"], p["cu"], p["cn"]
+    na = ci.shape[0]
+    dq = np.zeros((R.shape[0] + 1, 2))
+    contact._apply(dq, w, O, dl, na, ci, cu, cn, dm, 1.0)
+    nu = dm[:na] + p["mu0"]
+    rel = dq[ci[:, 0]] - (1 - cu)[:, None] * dq[ci[:, 1]] - cu[:, None] * dq[ci[:, 1] + 1]
+    gaps = np.einsum("ij,ij->i", cn, rel) - p["rhs_c"]
+    rows = p["f"] * np.einsum("ij,ij->i", R, dq[1:] - dq[:-1]) - p["rhs_e"]
+    free = (w[:-1].sum(axis=1) + w[1:].sum(axis=1)) > 0
+    size = p["f"] * np.abs(R).max() * np.abs(dq).max()
+    return nu.min(), gaps.min(), np.abs(gaps[nu > 0]).max(), np.abs(rows[free]).max() / size
+
+
+@pytest.mark.parametrize("p", _recorded())
+def test_redundant_contacts_of_a_strip_lying_on_itself_are_solved_banded(p):
+    """On the recorded problems the banded pivoting ends on the active set (it does not
+    hand them to the dense solve), and its solution satisfies the complementarity
+    conditions to the solve's tolerance (about 1e-14 of the 0.0157 thickness)."""
+    m, na, tol = p["R"].shape[0], p["ci"].shape[0], float(p["tol"])
+    ck = contact.new_contact_work(np.linalg.norm(p["O"], axis=1))
+    dl = np.zeros(m + 2)
+    dm = np.zeros(na + 2)
+    assert contact._bordered_solve(p["R"], p["O"], p["w"], float(p["f"]), p["rhs_e"], na,
+                                   p["ci"], p["cu"], p["cn"], p["rhs_c"], ck, dl, dm,
+                                   p["mu0"], p["eq"], p["hint"], tol)
+    assert ck.meta[contact._NBAND] == 1 and ck.meta[contact._NDENSE] == 0
+    nu_min, gap_min, gap_push, edge_res = _kkt(p, dl, dm)
+    assert nu_min >= 0.0
+    assert gap_min >= -tol
+    assert gap_push <= tol
+    assert edge_res <= 1e-13
+
+
+def _schur(p):
+    """The contacts' complementarity problem ``w = S nu + q`` (``nu`` the total
+    multipliers) of a recorded problem, built densely here from its definition: the
+    update ``dq = W (G_O^T dl + C^T dm)``, the edge rows ``f R_e . (dq_{e+1} - dq_e) =
+    rhs_e`` solved for ``dl``, the gaps ``C dq - rhs_c``."""
+    R, O, w, ci, cu, cn, f = p["R"], p["O"], p["w"], p["ci"], p["cu"], p["cn"], p["f"]
+    m, na = R.shape[0], ci.shape[0]
+    Go = np.zeros((m, 2 * m + 2))
+    Gr = np.zeros((m, 2 * m + 2))
+    for e in range(m):
+        Go[e, 2 * e:2 * e + 4] = np.r_[-O[e], O[e]]
+        Gr[e, 2 * e:2 * e + 4] = f * np.r_[-R[e], R[e]]
+    C = np.zeros((na, 2 * m + 2))
+    for k, ((i, j), u, nk) in enumerate(zip(ci, cu, cn, strict=True)):
+        C[k, 2 * i:2 * i + 2] += nk
+        C[k, 2 * j:2 * j + 2] -= (1 - u) * nk
+        C[k, 2 * j + 2:2 * j + 4] -= u * nk
+    W = np.diag(w.reshape(-1))
+    T = Gr @ W @ Go.T
+    held = np.abs(np.diag(T)) == 0.0
+    T[held] = 0.0
+    T[held, held] = 1.0
+    B = Gr @ W @ C.T
+    B[held] = 0.0
+    rhs_e = np.where(held, 0.0, p["rhs_e"])
+    CWG = C @ W @ Go.T
+    S = C @ W @ C.T - CWG @ np.linalg.solve(T, B)
+    q = CWG @ np.linalg.solve(T, rhs_e) - p["rhs_c"] - S @ p["mu0"]
+    return S, q
+
+
+@pytest.mark.parametrize("p", _recorded())
+def test_redundant_contacts_are_pivoted_to_the_start_of_the_dense_solve(p):
+    """The dense solve's pivoting (``_lcp_guess``, which starts projected Gauss-Seidel) ends
+    on the recorded problems too: it returns the solution of the shifted problem, to the
+    tolerance plus the shift's own error (``shift * nu``)."""
+    S, q = _schur(p)
+    na, tol = p["ci"].shape[0], float(p["tol"])
+    shift = contact.REGULARISATION * np.diag(S).max()
+    ck = contact.new_contact_work(np.linalg.norm(p["O"], axis=1))
+    nu = p["mu0"].copy()
+    assert contact._lcp_guess(S, q, nu, na, p["mu0"], p["eq"], p["hint"], shift, tol, ck)
+    w = S @ nu + q
+    slack = tol + shift * nu.max()
+    assert nu.min() >= 0.0
+    assert w.min() >= -slack
+    assert np.abs(w[nu > 0]).max() <= slack
