@@ -54,9 +54,10 @@ A strip folded flat on the ground is the common redundant case: every node of ei
 touches a segment of the other, and the ground holds the lower layer's normal
 coordinates, so a lower node's row is the combination ``(1 - u, u)`` of the rows of the
 upper segment's two nodes.  In a problem recorded from fig3-strip at x = 6 (300 edges,
-121 contacts) the capacitance matrix has 57 zero singular values.  Taken together as
-equations, redundant rows that do not agree exactly pull against each other through the
-diagonal shift (there: multipliers of -1.77 beside pushes of 8e-6 in the third pivot), and
+121 contacts) 57 singular values of the capacitance matrix are below 1e-10 of the largest.
+Taken together as equations, redundant rows that do not agree exactly pull against each
+other through the diagonal shift (there, block pivoting emulated densely: a multiplier of
+-1.77 at the third pivot, where the others' smallest push is 8e-6), and
 block pivoting (every infeasible contact changed at once) drops them, re-adds them and
 cycles.  Both pivotings (:func:`_lcp_guess`, :func:`_band_lcp`) therefore change every
 infeasible contact for :data:`BLOCK_PIVOTS` pivots, then one at a time, the most
@@ -112,7 +113,8 @@ PAIRS_PER_NODE = 16
 #: Most contacts active at once (the capacitance matrix is dense in them: its work arrays
 #: hold ``min(3 n, MAX_ACTIVE)**2`` and ``m min(3 n, MAX_ACTIVE)`` floats, 8 MB each at
 #: 1000 edges).  A strip folded flat on itself touches with about every node of both
-#: layers: fig3-strip at x = 6 and 1000 edges reached 510 contacts and stopped at 512.
+#: layers: fig3-strip at x = 6 and 1000 edges reached 510 pushing contacts, and more than 512
+#: candidates.
 MAX_ACTIVE = 1024
 
 #: Newton iterations of a position projection with contacts (edges converge

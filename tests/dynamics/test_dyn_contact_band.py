@@ -143,11 +143,12 @@ def test_an_unsettled_active_set_is_handed_to_the_dense_solve():
 
 def _recorded():
     """Three complementarity problems recorded from a strip folded flat on the ground
-    (fig3-strip, x = 6, 300 edges, thickness 0.0157, the velocity stage): 121-139
-    contacts both ways between the layers, the lower layer's normal coordinates held by
-    the ground, so about half the contact rows are combinations of the others (57 zero
-    singular values of the capacitance matrix in the first).  Block pivoting alone cycled
-    on all three (the banded solve refused them)."""
+    (fig3-strip, x = 6, 300 edges, thickness 0.0157; the first from the velocity stage,
+    the others from the position stage): 121-139 contacts both ways between the layers,
+    the lower layer's normal coordinates held by the ground, so about half the contact
+    rows are combinations of the others (in the first, 57 singular values of the
+    capacitance matrix below 1e-10 of the largest).  Block pivoting alone cycled on all
+    three (the banded solve refused them)."""
     data = np.load(DATA / "redundant_stack_lcp.npz")
     return [pytest.param({key[3:]: data[key] for key in data.files
                           if key.startswith(f"p{k}_")}, id=f"recorded{k}")
